@@ -1,0 +1,245 @@
+"""Parallel reductions over asperities: stress, standard error, tangent, counts (SPEC §6).
+
+Owns the assembly of Eq. (23) as a Monte Carlo sum, sigma_i = N sum_j w_j f_ij, and
+of its exact tangent T_ik = d sigma_i / d Delta_k.  The kernel loops over the
+asperities that can touch (the population is sorted by height) in fixed-size chunks
+under ``prange``; each chunk writes its partial sums to its own row of a caller-owned
+array, so the result does not depend on the number of threads.
+
+Tangent of one asperity, with Q = [n; s; t] (rows), local Jacobian J = d f_loc / d delta_loc
+and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
+
+    d f / d Delta_k = Q^T J Q e_k + [Q^T J (delta_s, -delta_n, 0) + f_n s - f_s n] theta_1 [k = 1]
+
+using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .geometry import local_displacement, theta_m_and_slope
+from .laws.paper import paper_local
+
+CHUNK = 2048
+# layout of one row of partial sums
+I_F, I_F2, I_T, I_NC, I_NS, I_TH = 0, 3, 6, 15, 16, 17
+N_ACC = 18
+POLICIES = ("follow", "birth")
+LAWS = ("paper",)
+
+
+@numba.njit(cache=True, inline="always")
+def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
+    """Physical meridional angle theta = (2/pi) u theta_m(c, R) and d theta/d Delta_1 (SPEC §3)."""
+    th_m, slope = theta_m_and_slope(closure, inv_R, k_e)
+    scale = u_j / (0.5 * math.pi)
+    return scale * th_m, scale * slope * dclosure_d1
+
+
+@numba.njit(cache=True, parallel=True)
+def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, partial):
+    """Partial sums of forces, squared forces, tangents and counts for the ``paper`` law.
+
+    ``theta_birth`` is empty (policy follow) or holds, per asperity, the frozen angle of a
+    committed contact and NaN elsewhere (policy birth).  ``partial`` has shape
+    (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure = r_o + d1
+    dc = 1.0
+    if closure <= 0.0:
+        closure = 0.0
+        dc = 0.0
+    has_birth = theta_birth.size > 0
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        acc = np.zeros(N_ACC)
+        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+            inv_R = 1.0 / R[j]
+            cp, sp = cos_phi[j], sin_phi[j]
+            th, th1 = asperity_theta(u[j], inv_R, closure, k_e, dc)
+            if has_birth and not math.isnan(theta_birth[j]):
+                tb = theta_birth[j]
+                dn_b = math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3)
+                if dn_b > 0.0:  # committed contact keeps its birth angle
+                    th, th1 = tb, 0.0
+            ct, st = math.cos(th), math.sin(th)
+            dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+            if dn <= 0.0:
+                continue
+            f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
+                dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
+            # frame vectors
+            n0, n1, n2 = ct, st * cp, st * sp
+            s0, s1, s2 = -st, ct * cp, ct * sp
+            t0, t1, t2 = 0.0, -sp, cp
+            # global force
+            g0 = f_n * n0 + f_s * s0 + f_t * t0
+            g1 = f_n * n1 + f_s * s1 + f_t * t1
+            g2 = f_n * n2 + f_s * s2 + f_t * t2
+            # local Jacobian J (rows f_n, f_s, f_t; columns delta_n, delta_s, delta_t)
+            dst = math.sqrt(ds * ds + dt * dt)
+            if dst > 0.0:
+                es, et = ds / dst, dt / dst
+            else:
+                es, et = 0.0, 0.0
+            extra = dF_dst - k_sec
+            Jsn, Jtn = dF_dn * es, dF_dn * et
+            Jss, Jst, Jtt = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
+            # A = J Q (3x3): row a of A = sum_b J[a, b] Q[b, :]
+            A00, A01, A02 = k_n * n0, k_n * n1, k_n * n2
+            A10 = Jsn * n0 + Jss * s0 + Jst * t0
+            A11 = Jsn * n1 + Jss * s1 + Jst * t1
+            A12 = Jsn * n2 + Jss * s2 + Jst * t2
+            A20 = Jtn * n0 + Jst * s0 + Jtt * t0
+            A21 = Jtn * n1 + Jst * s1 + Jtt * t1
+            A22 = Jtn * n2 + Jst * s2 + Jtt * t2
+            # theta term: w = J (delta_s, -delta_n, 0) in local components, then Q^T w + f_n s - f_s n
+            w0 = k_n * ds
+            w1 = Jsn * ds - Jss * dn
+            w2 = Jtn * ds - Jst * dn
+            v0 = (n0 * w0 + s0 * w1 + t0 * w2 + f_n * s0 - f_s * n0) * th1
+            v1 = (n1 * w0 + s1 * w1 + t1 * w2 + f_n * s1 - f_s * n1) * th1
+            v2 = (n2 * w0 + s2 * w1 + t2 * w2 + f_n * s2 - f_s * n2) * th1
+            acc[0] += g0
+            acc[1] += g1
+            acc[2] += g2
+            acc[3] += g0 * g0
+            acc[4] += g1 * g1
+            acc[5] += g2 * g2
+            # T = Q^T A (+ v e_1^T)
+            acc[6] += n0 * A00 + s0 * A10 + t0 * A20 + v0
+            acc[7] += n0 * A01 + s0 * A11 + t0 * A21
+            acc[8] += n0 * A02 + s0 * A12 + t0 * A22
+            acc[9] += n1 * A00 + s1 * A10 + t1 * A20 + v1
+            acc[10] += n1 * A01 + s1 * A11 + t1 * A21
+            acc[11] += n1 * A02 + s1 * A12 + t1 * A22
+            acc[12] += n2 * A00 + s2 * A10 + t2 * A20 + v2
+            acc[13] += n2 * A01 + s2 * A11 + t2 * A21
+            acc[14] += n2 * A02 + s2 * A12 + t2 * A22
+            acc[15] += 1.0
+            if slip:
+                acc[16] += 1.0
+            acc[17] += th
+        partial[ic, :] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place.
+
+    A committed contact that stays in contact keeps its angle; one that leaves contact is
+    released (NaN) and, like every asperity without an angle, is born at its current
+    ``follow`` angle if it touches there.  Asperities beyond n_active are out of contact.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure = max(r_o + d1, 0.0)
+    for j in numba.prange(theta_birth.size):
+        if j >= n_active:
+            theta_birth[j] = np.nan
+            continue
+        shear = cos_phi[j] * d2 + sin_phi[j] * d3
+        tb = theta_birth[j]
+        if not math.isnan(tb) and math.cos(tb) * (d1 - r[j]) + math.sin(tb) * shear > 0.0:
+            continue
+        th, _ = asperity_theta(u[j], 1.0 / R[j], closure, k_e, 0.0)
+        if math.cos(th) * (d1 - r[j]) + math.sin(th) * shear > 0.0:
+            theta_birth[j] = th
+        else:
+            theta_birth[j] = np.nan
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Interface response at one displacement (SPEC §6).
+
+    stress (3,) [Pa], stderr (3,) [Pa] (Monte Carlo standard error of each component),
+    tangent (3, 3) [Pa/m] (d sigma_i / d Delta_k), n_contact and n_slip (asperity counts),
+    mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
+    that could touch and were visited).
+    """
+
+    delta: np.ndarray
+    stress: np.ndarray
+    stderr: np.ndarray
+    tangent: np.ndarray
+    n_contact: int
+    n_slip: int
+    mean_theta: float
+    n_active: int
+
+
+def check_delta(delta) -> np.ndarray:
+    d = np.asarray(delta, dtype=float)
+    if d.shape != (3,):
+        raise ValueError(f"delta = {delta!r} must have shape (3,) [m], got shape {d.shape}")
+    if not np.all(np.isfinite(d)):
+        raise ValueError(f"delta = {d!r} [m] is not finite (valid range: finite reals)")
+    return d
+
+
+def check_choice(name, value, valid):
+    if value not in valid:
+        raise ValueError(f"{name} = {value!r} is not known (valid: {', '.join(valid)})")
+
+
+class Workspace:
+    """Preallocated partial-sum buffer for one population (a Newton iteration allocates nothing)."""
+
+    def __init__(self, n):
+        self.partial = np.zeros(((n + CHUNK - 1) // CHUNK, N_ACC))
+
+
+_EMPTY = np.empty(0)
+
+
+def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None) -> Evaluation:
+    """Evaluate Eq. (23) and its tangent over a population at interface displacement delta [m].
+
+    Under policy ``birth`` the committed birth angles ``theta_birth`` (NaN where not in
+    contact) are used; without them every contact is born now, which equals ``follow``.
+    """
+    d = check_delta(delta)
+    check_choice("law", law, LAWS)
+    check_choice("policy", policy, POLICIES)
+    p = pop.params
+    if policy == "birth" and theta_birth is not None:
+        tb = np.asarray(theta_birth, dtype=float)
+        if tb.shape != (pop.n,):
+            raise ValueError(f"theta_birth has shape {tb.shape}, expected ({pop.n},)")
+    else:
+        tb = _EMPTY
+    ws = workspace if workspace is not None else Workspace(pop.n)
+    n_active = pop.n_reachable(d)
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
+                   p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, ws.partial)
+    s = ws.partial[:n_chunks].sum(axis=0)
+    return _finish(pop, d, s, n_active)
+
+
+def _finish(pop, d, s, n_active) -> Evaluation:
+    n = pop.n
+    scale = pop.params.N * pop.weight
+    sum_f, sum_f2 = s[I_F:I_F + 3], s[I_F2:I_F2 + 3]
+    if n > 1:
+        var = np.maximum(sum_f2 - sum_f * sum_f / n, 0.0) / (n - 1)
+        stderr = scale * n * np.sqrt(var / n)
+    else:
+        stderr = np.zeros(3)
+    n_contact = int(round(s[I_NC]))
+    return Evaluation(
+        delta=d,
+        stress=scale * sum_f,
+        stderr=stderr,
+        tangent=scale * s[I_T:I_T + 9].reshape(3, 3),
+        n_contact=n_contact,
+        n_slip=int(round(s[I_NS])),
+        mean_theta=float(s[I_TH] / n_contact) if n_contact else 0.0,
+        n_active=n_active,
+    )

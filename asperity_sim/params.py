@@ -1,0 +1,156 @@
+"""Interface parameters (SPEC §1): one frozen, validated dataclass.
+
+This module owns the physical parameters of a rough interface and nothing else.
+Every field carries its unit and long name in the dataclass field metadata; the
+recorder copies them into netCDF attributes from there.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from dataclasses import dataclass, field
+
+__all__ = ["InterfaceParams", "check_real"]
+
+
+def _f(units: str, long_name: str, **kw):
+    return field(metadata={"units": units, "long_name": long_name}, **kw)
+
+
+def check_real(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False, allow_inf=False):
+    """Return ``value`` as a float or raise ``ValueError`` naming it and its valid range."""
+    rng = _range_text(lo, hi, lo_open, hi_open)
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r} is not a real number (valid range: {rng})")
+    v = float(value)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise ValueError(f"{name} = {v!r} is not finite (valid range: {rng})")
+    bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
+    bad_hi = hi is not None and (v >= hi if hi_open else v > hi)
+    if bad_lo or bad_hi:
+        raise ValueError(f"{name} = {v!r} is out of range (valid range: {rng})")
+    return v
+
+
+def _range_text(lo, hi, lo_open, hi_open):
+    if lo is None and hi is None:
+        return "any finite real"
+    if hi is None:
+        return f"{_op(lo_open, '>')} {lo:g}"
+    if lo is None:
+        return f"{_op(hi_open, '<')} {hi:g}"
+    left = "(" if lo_open else "["
+    right = ")" if hi_open else "]"
+    return f"{left}{lo:g}, {hi:g}{right}"
+
+
+def _op(is_open, op):
+    return op if is_open else op + "="
+
+
+# (lo, hi, lo_open, hi_open) per field, from SPEC §1.
+_RANGES = {
+    "N": (0.0, None, True, False),
+    "alpha": (-1.0, None, True, False),
+    "beta": (0.0, None, True, False),
+    "R_m": (0.0, None, True, False),
+    "R_sigma": (0.0, None, False, False),
+    "e": (0.0, 1.0, False, False),
+    "r_o": (0.0, None, False, False),
+    "mu": (0.0, None, False, False),
+    "G": (0.0, None, True, False),
+    "nu": (-1.0, 0.5, True, False),
+    "b": (-1.0, 2.0, False, False),
+    "c": (-1.0 / 3.0, 1.0 / 3.0, False, False),
+    "d": (-1.0 / 3.0, 1.0 / 3.0, False, False),
+}
+
+
+@dataclass(frozen=True)
+class InterfaceParams:
+    """Statistical and elastic description of a rough interface (SPEC §1).
+
+    Parameters
+    ----------
+    N : float [1/m²]      asperity contacts per unit nominal area
+    alpha : float [1]     gamma shape minus one of the height density, Eq. (1)
+    beta : float [m]      gamma scale of the height density, Eq. (1)
+    R_m, R_sigma : float [m]  mean and s.d. of the relative radius, Eq. (5)
+    mu : float [1]        asperity friction coefficient
+    G : float [Pa]        shear modulus
+    nu : float [1]        Poisson's ratio
+    e : float [1]         curvature ratio R1/R2 (Eq. 4); default 1
+    r_o : float [m]       initial closure, widens the orientation extent only (SPEC §3)
+    b, c, d : float [1]   shape of the orientation density, Eq. (10) corrected
+    """
+
+    N: float = _f("m-2", "asperity contacts per unit nominal area")
+    alpha: float = _f("1", "height distribution shape parameter alpha")
+    beta: float = _f("m", "height distribution scale parameter beta")
+    R_m: float = _f("m", "mean relative radius of curvature")
+    R_sigma: float = _f("m", "standard deviation of relative radius of curvature")
+    mu: float = _f("1", "asperity friction coefficient")
+    G: float = _f("Pa", "shear modulus")
+    nu: float = _f("1", "Poisson's ratio")
+    e: float = _f("1", "curvature ratio R1/R2 at a contact", default=1.0)
+    r_o: float = _f("m", "initial closure", default=0.0)
+    b: float = _f("1", "orientation density coefficient b (P2 term)", default=0.0)
+    c: float = _f("1", "orientation density coefficient c (cos 2 phi term)", default=0.0)
+    d: float = _f("1", "orientation density coefficient d (sin 2 phi term)", default=0.0)
+
+    def __post_init__(self):
+        for name, (lo, hi, lo_open, hi_open) in _RANGES.items():
+            v = check_real(name, getattr(self, name), lo, hi, lo_open, hi_open)
+            object.__setattr__(self, name, v)
+        rho = math.hypot(self.c, self.d)
+        if self.b / 2.0 + 3.0 * rho > 1.0 + 1e-12:
+            raise ValueError(
+                f"orientation density goes negative: b/2 + 3 sqrt(c² + d²) = "
+                f"{self.b / 2.0 + 3.0 * rho:.6g} with b = {self.b!r}, c = {self.c!r}, d = {self.d!r} "
+                "(valid range: b >= -1 and b/2 + 3 sqrt(c² + d²) <= 1, SPEC §3)"
+            )
+
+    # -- derived quantities (SPEC §3, §5) ----------------------------------
+    @property
+    def k_e(self) -> float:
+        """Curvature factor e/(1+e)² of Eq. (9)."""
+        return self.e / (1.0 + self.e) ** 2
+
+    @property
+    def E_star(self) -> float:
+        """Contact modulus G/(1-nu) [Pa], SPEC §5."""
+        return self.G / (1.0 - self.nu)
+
+    @property
+    def lam(self) -> float:
+        """lambda = (2-nu)/(2(1-nu)) of Eq. (17)."""
+        return (2.0 - self.nu) / (2.0 * (1.0 - self.nu))
+
+    @property
+    def R_bounds(self) -> tuple[float, float]:
+        """Support of the truncated radius density [m] (SPEC §2)."""
+        return max(self.R_m - 3.0 * self.R_sigma, 0.0), self.R_m + 3.0 * self.R_sigma
+
+    @property
+    def isotropic(self) -> bool:
+        return self.b == 0.0 and self.c == 0.0 and self.d == 0.0
+
+    def replace(self, **changes) -> "InterfaceParams":
+        """A validated copy with some fields changed, e.g. ``params.replace(mu=0.3)``."""
+        unknown = set(changes) - set(_RANGES)
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {sorted(unknown)} (valid: {sorted(_RANGES)})")
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    @staticmethod
+    def units() -> dict[str, str]:
+        return {f.name: f.metadata["units"] for f in dataclasses.fields(InterfaceParams)}
+
+    @staticmethod
+    def long_names() -> dict[str, str]:
+        return {f.name: f.metadata["long_name"] for f in dataclasses.fields(InterfaceParams)}

@@ -1,0 +1,225 @@
+"""A sampled population of asperity contacts (SPEC §2–§3).
+
+Owns sampling: this is the only module that touches random generators.  A population
+is struct-of-arrays (no Python object per asperity): heights r, relative radii R and
+fixed shifted orientation coordinates (u, phi), stored sorted by height so that a
+kernel can skip every asperity that cannot touch at a given displacement.
+
+Each draw maps one point of the unit hypercube [0, 1)^4 through the inverse CDFs of
+the independent densities: gamma heights (SPEC §2, corrected normalisation), the
+truncated Gaussian radius, the marginal of cos u, and the conditional of phi given u
+(Eq. 10, corrected).  ``sampler="random"`` takes the points from numpy's PCG64,
+``sampler="sobol"`` from scrambled Sobol' points (randomised QMC).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import warnings
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy import special, stats
+
+from .params import InterfaceParams
+
+SAMPLERS = ("random", "sobol")
+N_MAX = 2**31 - 1
+
+
+@numba.njit(cache=True)
+def _cos_u_from_uniform(p, b):
+    """Invert F(x) = x + b (x³ - x)/2 on [0, 1]: marginal CDF of x = cos u (Eq. 10)."""
+    out = np.empty_like(p)
+    for i in range(p.size):
+        target = p[i]
+        lo, hi = 0.0, 1.0
+        x = target
+        for _ in range(100):
+            f = x + 0.5 * b * (x * x * x - x) - target
+            if f > 0.0:
+                hi = x
+            else:
+                lo = x
+            fp = 1.0 + 0.5 * b * (3.0 * x * x - 1.0)
+            xn = x - f / fp if fp > 0.0 else 0.5 * (lo + hi)
+            if not (lo < xn < hi):
+                xn = 0.5 * (lo + hi)
+            if abs(xn - x) <= 1e-15:
+                x = xn
+                break
+            x = xn
+        out[i] = x
+    return out
+
+
+@numba.njit(cache=True)
+def _phi_from_uniform(p, x, b, c, d):
+    """Invert the conditional CDF of phi given x = cos u (Eq. 10) on [0, 2 pi)."""
+    out = np.empty_like(p)
+    two_pi = 2.0 * math.pi
+    for i in range(p.size):
+        xi = x[i]
+        a0 = 1.0 + 0.5 * b * (3.0 * xi * xi - 1.0)
+        a2 = 3.0 * (1.0 - xi * xi)
+        target = p[i] * two_pi * a0
+        lo, hi = 0.0, two_pi
+        ph = p[i] * two_pi
+        for _ in range(100):
+            f = a0 * ph + 0.5 * a2 * (c * math.sin(2.0 * ph) + d * (1.0 - math.cos(2.0 * ph))) - target
+            if f > 0.0:
+                hi = ph
+            else:
+                lo = ph
+            fp = a0 + a2 * (c * math.cos(2.0 * ph) + d * math.sin(2.0 * ph))
+            pn = ph - f / fp if fp > 0.0 else 0.5 * (lo + hi)
+            if not (lo < pn < hi):
+                pn = 0.5 * (lo + hi)
+            if abs(pn - ph) <= 1e-15:
+                ph = pn
+                break
+            ph = pn
+        out[i] = ph
+    return out
+
+
+def heights_from_uniform(params: InterfaceParams, p):
+    """Gamma heights r [m] (shape alpha+1, scale beta) from uniforms, SPEC §2."""
+    return special.gammaincinv(params.alpha + 1.0, p) * params.beta
+
+
+def radii_from_uniform(params: InterfaceParams, p):
+    """Truncated Gaussian relative radii R [m] from uniforms, SPEC §2."""
+    if params.R_sigma == 0.0:
+        return np.full_like(p, params.R_m)
+    lo, hi = params.R_bounds
+    a = (lo - params.R_m) / params.R_sigma
+    b = (hi - params.R_m) / params.R_sigma
+    lo_cdf, hi_cdf = special.ndtr(a), special.ndtr(b)
+    R = params.R_m + params.R_sigma * special.ndtri(lo_cdf + p * (hi_cdf - lo_cdf))
+    R = np.clip(R, lo, hi)
+    # R = 0 has probability zero but the ppf can return the bound itself
+    return np.maximum(R, np.nextafter(0.0, 1.0))
+
+
+def orientation_from_uniform(params: InterfaceParams, p_u, p_phi):
+    """Shifted meridional coordinate u [rad] and azimuth phi [rad] from uniforms (Eq. 10)."""
+    if params.b == 0.0:
+        x = np.asarray(p_u, dtype=float).copy()  # cos u uniform on [0, 1]
+    else:
+        x = _cos_u_from_uniform(np.ascontiguousarray(p_u, dtype=float), params.b)
+    if params.c == 0.0 and params.d == 0.0:
+        phi = 2.0 * math.pi * np.asarray(p_phi, dtype=float)
+    else:
+        phi = _phi_from_uniform(np.ascontiguousarray(p_phi, dtype=float), x, params.b, params.c, params.d)
+    u = np.arccos(np.clip(x, 0.0, 1.0))
+    return u, phi
+
+
+def unit_points(n: int, seed, sampler: str) -> np.ndarray:
+    """n points of [0, 1)^4 from the chosen sampler (the only random source)."""
+    if sampler == "random":
+        return np.random.default_rng(seed).random((n, 4))
+    with warnings.catch_warnings():
+        # balance properties want n = 2^m; any n still gives a valid randomised QMC estimate
+        warnings.filterwarnings("ignore", message=".*balance properties.*")
+        return stats.qmc.Sobol(d=4, scramble=True, seed=seed).random(n)
+
+
+def _check_n(n):
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or not 1 <= n <= N_MAX:
+        raise ValueError(f"n = {n!r} is not a valid sample size (valid range: integer in [1, {N_MAX}])")
+    return int(n)
+
+
+def _check_seed(seed):
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed = {seed!r} is not a valid seed (valid range: None or integer >= 0)")
+    return int(seed)
+
+
+@dataclass(frozen=True, eq=False)
+class Population:
+    """n sampled asperities as struct-of-arrays, sorted by height r.
+
+    Attributes
+    ----------
+    params : InterfaceParams
+    r : ndarray (n,) [m]        asperity height below the highest summit
+    R : ndarray (n,) [m]        relative radius of curvature
+    u : ndarray (n,) [rad]      shifted meridional coordinate in [0, pi/2]
+    cos_phi, sin_phi : ndarray (n,) [1]  azimuth phi as its cosine and sine
+    weight : float [1]          probability weight of each sample (1/n)
+    seed, sampler : how it was drawn
+    """
+
+    params: InterfaceParams
+    r: np.ndarray
+    R: np.ndarray
+    u: np.ndarray
+    cos_phi: np.ndarray
+    sin_phi: np.ndarray
+    weight: float
+    seed: int | None
+    sampler: str
+
+    @classmethod
+    def sample(cls, params: InterfaceParams, n: int, seed: int | None = 0, sampler: str = "random") -> "Population":
+        """Draw n asperities from SPEC §2–§3; same (params, n, seed, sampler) gives identical arrays."""
+        if not isinstance(params, InterfaceParams):
+            raise ValueError(f"params = {params!r} is not an InterfaceParams")
+        n = _check_n(n)
+        seed = _check_seed(seed)
+        if sampler not in SAMPLERS:
+            raise ValueError(f"sampler = {sampler!r} is not known (valid: {', '.join(SAMPLERS)})")
+        U = unit_points(n, seed, sampler)
+        r = heights_from_uniform(params, U[:, 0])
+        R = radii_from_uniform(params, U[:, 1])
+        u, phi = orientation_from_uniform(params, U[:, 2], U[:, 3])
+        order = np.argsort(r, kind="stable")
+        return cls(
+            params=params,
+            r=np.ascontiguousarray(r[order]),
+            R=np.ascontiguousarray(R[order]),
+            u=np.ascontiguousarray(u[order]),
+            cos_phi=np.ascontiguousarray(np.cos(phi[order])),
+            sin_phi=np.ascontiguousarray(np.sin(phi[order])),
+            weight=1.0 / n,
+            seed=seed,
+            sampler=sampler,
+        )
+
+    @property
+    def n(self) -> int:
+        return self.r.size
+
+    @property
+    def phi(self) -> np.ndarray:
+        """Azimuth phi [rad] in [0, 2 pi)."""
+        return np.mod(np.arctan2(self.sin_phi, self.cos_phi), 2.0 * math.pi)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in (self.r, self.R, self.u, self.cos_phi, self.sin_phi))
+
+    def n_reachable(self, delta) -> int:
+        """Number of asperities that can touch at displacement delta (SPEC §4).
+
+        delta_n = cos(theta)(Delta_1 - r) + sin(theta)(shear part) <= max(Delta_1 - r, 0) + |Delta_shear|
+        for any theta in [0, pi/2], so no asperity with r >= Delta_1 + |Delta_shear| is in contact.
+        """
+        r_max = delta[0] + math.hypot(delta[1], delta[2])
+        return int(np.searchsorted(self.r, r_max, side="left"))
+
+    def evaluate(self, delta, law: str = "paper", policy: str = "follow", theta_birth=None):
+        """Interface stress, standard error, tangent and contact counts at delta (SPEC §6).
+
+        See :func:`asperity_sim.assemble.evaluate`.
+        """
+        from .assemble import evaluate
+
+        return evaluate(self, delta, law=law, policy=policy, theta_birth=theta_birth)
