@@ -1,8 +1,26 @@
-"""asperity_sim: Monte Carlo simulator of rough interfaces (Misra & Huang, SPEC.md)."""
+"""asperity_sim: Monte Carlo simulator of rough interfaces (Misra & Huang; see SPEC.md).
+
+Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Population`` with
+``evaluate``, load ``paths``, ``simulate`` and the quadrature ``reference``.
+"""
 
 __version__ = "0.1.0"
 
-from . import presets
+from . import paths, presets
 from .params import InterfaceParams
+from .population import Population
+from .driver import ConvergenceError, SimulationError, StressNotReachableError, simulate
+from .solver import SolverSettings
 
-__all__ = ["InterfaceParams", "presets", "__version__"]
+__all__ = [
+    "InterfaceParams", "presets", "Population", "paths", "simulate", "reference", "SolverSettings",
+    "SimulationError", "StressNotReachableError", "ConvergenceError", "__version__",
+]
+
+
+def __getattr__(name):
+    if name == "reference":
+        from . import reference
+
+        return reference
+    raise AttributeError(f"module 'asperity_sim' has no attribute {name!r}")

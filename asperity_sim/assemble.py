@@ -243,3 +243,53 @@ def _finish(pop, d, s, n_active) -> Evaluation:
         mean_theta=float(s[I_TH] / n_contact) if n_contact else 0.0,
         n_active=n_active,
     )
+
+
+@numba.njit(cache=True, parallel=True)
+def asperity_snapshot(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, mu, theta_birth,
+                      delta_n_out, theta_out, force_out, state_out):
+    """Per-asperity overlap, orientation, global force and state code (0 out, 1 stick, 2 partial, 3 slip)."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure = max(r_o + d1, 0.0)
+    has_birth = theta_birth.size > 0
+    for j in numba.prange(r.size):
+        cp, sp = cos_phi[j], sin_phi[j]
+        th, _ = asperity_theta(u[j], 1.0 / R[j], closure, k_e, 0.0)
+        if has_birth and not math.isnan(theta_birth[j]):
+            tb = theta_birth[j]
+            if math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3) > 0.0:
+                th = tb
+        ct, st = math.cos(th), math.sin(th)
+        dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+        delta_n_out[j] = dn
+        theta_out[j] = th
+        if dn <= 0.0:
+            force_out[j, 0] = 0.0
+            force_out[j, 1] = 0.0
+            force_out[j, 2] = 0.0
+            state_out[j] = 0
+            continue
+        f_n, f_s, f_t, _, _, _, _, slip = paper_local(dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
+        force_out[j, 0] = f_n * ct - f_s * st
+        force_out[j, 1] = f_n * st * cp + f_s * ct * cp - f_t * sp
+        force_out[j, 2] = f_n * st * sp + f_s * ct * sp + f_t * cp
+        if slip:
+            state_out[j] = 3
+        elif ds == 0.0 and dt == 0.0:
+            state_out[j] = 1
+        else:
+            state_out[j] = 2
+
+
+def snapshot(pop, delta, policy="follow", theta_birth=None):
+    """Per-asperity arrays at delta: dict of delta_n [m], theta [rad], force (n, 3) [N], state code."""
+    d = check_delta(delta)
+    p = pop.params
+    tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else _EMPTY
+    out = {
+        "delta_n": np.empty(pop.n), "theta": np.empty(pop.n),
+        "force": np.empty((pop.n, 3)), "state": np.empty(pop.n, dtype=np.int8),
+    }
+    asperity_snapshot(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, p.E_star, p.lam, p.mu,
+                      tb, out["delta_n"], out["theta"], out["force"], out["state"])
+    return out

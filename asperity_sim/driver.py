@@ -1,0 +1,213 @@
+"""simulate(): a load path stepped through increments under mixed control (SPEC §6–§7).
+
+Owns the loop: for each stage, increments with cut-backs; for each increment, a Newton
+solve (:mod:`asperity_sim.solver`), then commit (birth angles under policy ``birth``) and
+record.  The loop runs inside ``try/finally`` so what converged is always kept: on
+failure the exception carries the partial dataset (and it is written if an output
+file was asked for).
+"""
+
+from __future__ import annotations
+
+import numbers
+import time
+
+import numpy as np
+
+from . import __version__
+from .assemble import LAWS, POLICIES, Workspace, birth_angles, check_choice, evaluate, snapshot
+from .params import InterfaceParams
+from .paths import LoadPath
+from .population import SAMPLERS, Population
+from .recorder import Recorder, run_attributes
+from .solver import SolverSettings, solve_increment
+
+
+class SimulationError(RuntimeError):
+    """A run stopped before the end of its path; ``.dataset`` holds every converged increment."""
+
+    def __init__(self, message, dataset=None):
+        super().__init__(message)
+        self.dataset = dataset
+
+
+class StressNotReachableError(SimulationError):
+    """A prescribed stress cannot be carried by the interface (e.g. shear above its strength)."""
+
+
+class ConvergenceError(SimulationError):
+    """An increment did not converge even after the largest number of cut-backs."""
+
+
+def _theta_am(params, closure):
+    from .reference import theta_am
+
+    return float(theta_am(params, closure))
+
+
+def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
+             sampler: str = "random", law: str = "paper", policy: str = "follow", *,
+             snapshots=None, output=None, settings: SolverSettings | None = None,
+             population: Population | None = None, progress=None):
+    """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
+
+    Parameters
+    ----------
+    params : InterfaceParams
+    path : LoadPath
+    n : int, number of sampled asperities
+    seed : int or None; sampler : "random" or "sobol"
+    law : "paper"; policy : "follow" or "birth" (SPEC §3)
+    snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
+    output : path of a netCDF file to write (atomically), also when the run fails
+    settings : SolverSettings
+    population : a Population to reuse instead of sampling (params, n, seed, sampler then come from it)
+    progress : callable(stage, n_stages, fraction, step, iterations) called after each increment
+
+    Returns
+    -------
+    xarray.Dataset with dimension ``step`` (see :mod:`asperity_sim.variables`).
+    """
+    if not isinstance(params, InterfaceParams):
+        raise ValueError(f"params = {params!r} is not an InterfaceParams")
+    if not isinstance(path, LoadPath):
+        raise ValueError(f"path = {path!r} is not a LoadPath (see asperity_sim.paths)")
+    check_choice("law", law, LAWS)
+    check_choice("policy", policy, POLICIES)
+    check_choice("sampler", sampler, SAMPLERS)
+    settings = settings or SolverSettings()
+    snap_steps, snap_stage_ends = _check_snapshots(snapshots)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress = {progress!r} must be callable or None")
+    if population is None:
+        population = Population.sample(params, n, seed=seed, sampler=sampler)
+    elif population.params != params:
+        raise ValueError("population was sampled from other parameters than params")
+    pop = population
+    call = (f"asperity_sim.simulate(path={path.name}, n={pop.n}, seed={pop.seed}, sampler={pop.sampler!r}, "
+            f"law={law!r}, policy={policy!r})")
+    attrs = run_attributes(params, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law, policy=policy,
+                           path=path, version=__version__, call=call)
+    ws = Workspace(pop.n)
+    theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
+    length = (params.alpha + 1.0) * params.beta  # mean height: the natural displacement scale
+
+    def evaluate_at(delta):
+        return evaluate(pop, delta, law=law, policy=policy, theta_birth=theta_birth, workspace=ws)
+
+    total = sum(s.increments for s in path.stages)
+    rec = Recorder(total + 1)
+    delta = np.zeros(3)
+    ev = evaluate_at(delta)
+    _record(rec, params, ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0, cutbacks=0)
+    if 0 in snap_steps:
+        rec.add_snapshot(0, snapshot(pop, delta, policy, theta_birth))
+    failure = None
+    t0 = time.perf_counter()
+    try:
+        for i_stage, stage in enumerate(path.stages, 1):
+            free = stage.stress_controlled
+            start_delta, start_stress = delta.copy(), ev.stress.copy()
+            end = np.asarray(stage.target, dtype=float)
+            nominal = 1.0 / stage.increments
+            s, ds, cuts = 0.0, nominal, 0
+            while s < 1.0 - 1e-12:
+                ds = min(ds, 1.0 - s)
+                s_new = 1.0 if s + ds > 1.0 - 1e-12 else s + ds
+                target_delta = np.where(free, delta, start_delta + s_new * (end - start_delta))
+                target_stress = np.where(free, start_stress + s_new * (end - start_stress), 0.0)
+                guess = _predict(ev, delta, target_delta, target_stress, free)
+                result = solve_increment(evaluate_at, guess, free, target_stress, length, settings)
+                if not result.converged:
+                    cuts += 1
+                    if result.unreachable or cuts > settings.max_cutbacks:
+                        kind = StressNotReachableError if result.unreachable else ConvergenceError
+                        if not result.unreachable and free.any() and _saturated(ev, free):
+                            kind = StressNotReachableError
+                        failure = kind(
+                            f"stage {i_stage} ({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage "
+                            f"after {cuts - 1} cut-backs: {result.message}")
+                        raise failure
+                    ds *= 0.5
+                    continue
+                ev = result.evaluation
+                delta = ev.delta.copy()
+                if theta_birth is not None:
+                    birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.n_reachable(delta), delta,
+                                 params.r_o, params.k_e, theta_birth)
+                s = s_new
+                _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
+                        residual=result.residual, cutbacks=cuts)
+                step = rec.size - 1
+                if step in snap_steps or (snap_stage_ends and s >= 1.0 - 1e-12):
+                    rec.add_snapshot(step, snapshot(pop, delta, policy, theta_birth))
+                if progress is not None:
+                    progress(i_stage, len(path.stages), s, step, result.iterations)
+                if stage.adaptive:
+                    ds = min(ds * (1.5 if result.iterations <= 3 else 1.0), stage.max_fraction)
+                    if result.iterations > 8:
+                        ds *= 0.5
+                else:
+                    ds = min(2.0 * ds, nominal) if cuts else nominal
+                cuts = 0
+    finally:
+        attrs["wall_time_s"] = time.perf_counter() - t0
+        attrs["status"] = "complete" if failure is None else f"failed: {failure}"
+        ds_out = rec.to_dataset(attrs, population=pop)
+        if output is not None:
+            from .io import write_netcdf
+
+            write_netcdf(ds_out, output)
+        if failure is not None:
+            failure.dataset = ds_out
+    return ds_out
+
+
+def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks):
+    rec.append(
+        displacement=ev.delta, stress=ev.stress, stress_stderr=ev.stderr, tangent=ev.tangent,
+        n_contact=ev.n_contact, n_slip=ev.n_slip,
+        theta_am=_theta_am(params, max(0.0, params.r_o + ev.delta[0])), mean_theta=ev.mean_theta,
+        stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
+        cutbacks=cutbacks,
+    )
+
+
+def _predict(ev, delta, target_delta, target_stress, free):
+    """Tangent predictor for the free components from the last converged state."""
+    guess = target_delta.copy()
+    if not free.any():
+        return guess
+    fixed = ~free
+    rhs = (target_stress - ev.stress)[free] - ev.tangent[np.ix_(free, fixed)] @ (target_delta - delta)[fixed]
+    T = ev.tangent[np.ix_(free, free)]
+    try:
+        if np.linalg.cond(T) < 1e12:
+            step = np.linalg.solve(T, rhs)
+            if np.all(np.isfinite(step)):
+                guess[free] = delta[free] + step
+    except np.linalg.LinAlgError:
+        pass
+    return guess
+
+
+def _saturated(ev, free):
+    """True when the tangent block of the free components has (almost) no stiffness left."""
+    T = ev.tangent[np.ix_(free, free)]
+    sv = np.linalg.svd(T, compute_uv=False)
+    return bool(sv[-1] <= 1e-6 * max(np.abs(ev.tangent).max(), 1e-300))
+
+
+def _check_snapshots(snapshots):
+    if snapshots is None:
+        return set(), False
+    if snapshots == "stage_ends":
+        return set(), True
+    try:
+        steps = set(snapshots)
+    except TypeError:
+        raise ValueError(f"snapshots = {snapshots!r} must be None, 'stage_ends' or a sequence of step numbers")
+    for s in steps:
+        if isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0:
+            raise ValueError(f"snapshot step {s!r} is not valid (valid range: integer >= 0)")
+    return {int(s) for s in steps}, False

@@ -1,0 +1,133 @@
+"""Load paths under mixed force/displacement control (SPEC §6–§7).
+
+Owns the description of a loading programme: a path is a sequence of stages; in each
+stage every component k = 1, 2, 3 is either displacement controlled (Delta_k goes
+linearly to a target [m]) or stress controlled (sigma_k goes linearly to a target
+[Pa]) from its value at the start of the stage, over a number of increments.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .params import check_real
+
+__all__ = ["Stage", "LoadPath", "three_step", "constant_normal_shear", "DISPLACEMENT", "STRESS"]
+
+DISPLACEMENT = "displacement"
+STRESS = "stress"
+_ALIASES = {"displacement": DISPLACEMENT, "d": DISPLACEMENT, "stress": STRESS, "s": STRESS}
+
+
+def _check_int(name, value, lo, hi):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= value <= hi:
+        raise ValueError(f"{name} = {value!r} is not valid (valid range: integer in [{lo}, {hi}])")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a load path.
+
+    Parameters
+    ----------
+    control : 3 strings, each ``"displacement"`` (``"d"``) or ``"stress"`` (``"s"``)
+    target : 3 floats, Delta_k [m] or sigma_k [Pa] reached at the end of the stage
+    increments : int, number of equal increments (the driver halves one that fails)
+    adaptive : bool, let the increment grow after easy convergence, up to
+        ``max_fraction`` of the stage, and shrink after hard convergence
+    max_fraction : float in (0, 1], largest increment as a fraction of the stage (adaptive only)
+    name : str, label recorded in the output
+    """
+
+    control: tuple = (DISPLACEMENT, DISPLACEMENT, DISPLACEMENT)
+    target: tuple = (0.0, 0.0, 0.0)
+    increments: int = 50
+    adaptive: bool = False
+    max_fraction: float = 0.1
+    name: str = ""
+
+    def __post_init__(self):
+        control = tuple(self.control) if not isinstance(self.control, str) else None
+        if control is None or len(control) != 3:
+            raise ValueError(f"control = {self.control!r} must name 3 components, each 'displacement' or 'stress'")
+        mapped = []
+        for k, c in enumerate(control, 1):
+            if c not in _ALIASES:
+                raise ValueError(f"control[{k}] = {c!r} is not known (valid: 'displacement'/'d', 'stress'/'s')")
+            mapped.append(_ALIASES[c])
+        object.__setattr__(self, "control", tuple(mapped))
+        target = tuple(self.target) if not isinstance(self.target, str) else ()
+        if len(target) != 3:
+            raise ValueError(f"target = {self.target!r} must have 3 components ([m] or [Pa])")
+        units = {DISPLACEMENT: "m", STRESS: "Pa"}
+        object.__setattr__(self, "target", tuple(
+            check_real(f"target[{k}] [{units[c]}]", t) for k, (c, t) in enumerate(zip(mapped, target), 1)))
+        object.__setattr__(self, "increments", _check_int("increments", self.increments, 1, 10**7))
+        if not isinstance(self.adaptive, bool):
+            raise ValueError(f"adaptive = {self.adaptive!r} must be True or False")
+        object.__setattr__(self, "max_fraction",
+                           check_real("max_fraction", self.max_fraction, 0.0, 1.0, lo_open=True))
+        if not isinstance(self.name, str):
+            raise ValueError(f"name = {self.name!r} must be a string")
+
+    @property
+    def stress_controlled(self) -> np.ndarray:
+        """Boolean mask (3,) of the stress-controlled components."""
+        return np.array([c == STRESS for c in self.control])
+
+
+@dataclass(frozen=True)
+class LoadPath:
+    """A sequence of stages, applied from zero displacement and zero stress."""
+
+    stages: tuple = field(default_factory=tuple)
+    name: str = "custom"
+
+    def __post_init__(self):
+        stages = tuple(self.stages)
+        if not stages or not all(isinstance(s, Stage) for s in stages):
+            raise ValueError(f"stages = {self.stages!r} must be a non-empty sequence of Stage")
+        object.__setattr__(self, "stages", stages)
+
+    def __len__(self):
+        return len(self.stages)
+
+    def describe(self) -> str:
+        lines = []
+        for i, s in enumerate(self.stages, 1):
+            parts = [f"{'sigma' if c == STRESS else 'Delta'}_{k} -> {t:.4g} {'Pa' if c == STRESS else 'm'}"
+                     for k, (c, t) in enumerate(zip(s.control, s.target), 1)]
+            lines.append(f"stage {i} ({s.name or 'unnamed'}, {s.increments} increments): " + ", ".join(parts))
+        return "\n".join(lines)
+
+
+def three_step(d_max: float, increments: int = 30) -> LoadPath:
+    """The paper's 3-step path (SPEC §7, Fig. 10): Delta_1, then Delta_2, then Delta_3 to d_max [m]."""
+    d = check_real("d_max [m]", d_max, 0.0, None, lo_open=True)
+    D = DISPLACEMENT
+    return LoadPath((
+        Stage((D, D, D), (d, 0.0, 0.0), increments, name="step 1: normal closure"),
+        Stage((D, D, D), (d, d, 0.0), increments, name="step 2: shear along 2"),
+        Stage((D, D, D), (d, d, d), increments, name="step 3: shear along 3"),
+    ), name="three_step")
+
+
+def constant_normal_shear(sigma_n: float, d2_max: float, increments: int = 40,
+                          normal_increments: int | None = None) -> LoadPath:
+    """Shear at constant normal stress (SPEC §7, Fig. 13).
+
+    Stage 1: sigma_1 from 0 to sigma_n [Pa] with Delta_2 = Delta_3 = 0; stage 2: sigma_1
+    held, Delta_2 from 0 to d2_max [m], Delta_3 = 0.
+    """
+    s_n = check_real("sigma_n [Pa]", sigma_n, 0.0, None, lo_open=True)
+    d2 = check_real("d2_max [m]", d2_max, 0.0, None, lo_open=True)
+    n1 = increments if normal_increments is None else normal_increments
+    S, D = STRESS, DISPLACEMENT
+    return LoadPath((
+        Stage((S, D, D), (s_n, 0.0, 0.0), n1, name="normal loading"),
+        Stage((S, D, D), (s_n, d2, 0.0), increments, name="shear at constant normal stress"),
+    ), name="constant_normal_shear")

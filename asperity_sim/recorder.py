@@ -1,0 +1,109 @@
+"""Per-step recording into preallocated buffers, and the xarray Dataset built from them.
+
+Owns the shape of the output: variables come only from :mod:`asperity_sim.variables`,
+so each carries ``units`` and ``long_name``.  Global attributes record every parameter,
+the sampling, the law, the policy, the load path and the package version.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+
+import numpy as np
+import xarray as xr
+
+from .variables import ASPERITY_VARIABLES, COORDS, SNAPSHOT_VARIABLES, STEP_VARIABLES
+
+PAPER = ("Misra, A. and Huang, S.: Micromechanical stress-displacement model for rough interfaces: "
+         "effect of asperity contact orientation on closure and shear behavior")
+
+
+class Recorder:
+    """Growable per-step buffers; ``append`` one converged increment at a time."""
+
+    def __init__(self, capacity: int):
+        self.size = 0
+        self._buf = {}
+        self._capacity = max(int(capacity), 1)
+        for name, var in STEP_VARIABLES.items():
+            shape = (self._capacity,) + tuple(3 for _ in var.dims[1:])
+            self._buf[name] = np.zeros(shape, dtype=var.dtype)
+        self.snapshots = []
+
+    def append(self, **values):
+        if self.size == self._capacity:
+            self._capacity *= 2
+            for name, a in self._buf.items():
+                grown = np.zeros((self._capacity,) + a.shape[1:], dtype=a.dtype)
+                grown[: self.size] = a[: self.size]
+                self._buf[name] = grown
+        missing = set(self._buf) - set(values)
+        if missing:
+            raise KeyError(f"record is missing {sorted(missing)}")
+        for name, v in values.items():
+            self._buf[name][self.size] = v
+        self.size += 1
+
+    def add_snapshot(self, step, arrays):
+        self.snapshots.append((step, arrays))
+
+    def to_dataset(self, attrs: dict, population=None) -> xr.Dataset:
+        n = self.size
+        data_vars = {name: (var.dims, self._buf[name][:n].copy(), _attrs(var))
+                     for name, var in STEP_VARIABLES.items()}
+        coords = {
+            "step": ("step", np.arange(n), {"long_name": "converged increment", "units": "1"}),
+            "axis": ("axis", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis"])),
+            "axis_k": ("axis_k", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis_k"])),
+        }
+        if self.snapshots and population is not None:
+            data_vars.update(_snapshot_vars(self.snapshots, population))
+        ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
+        ds["control"].attrs.update(flag_values=np.array([0, 1], dtype="i1"),
+                                   flag_meanings="displacement stress")
+        return ds
+
+
+def _attrs(var):
+    return {"units": var.units, "long_name": var.long_name}
+
+
+def _snapshot_vars(snapshots, pop):
+    steps = np.array([s for s, _ in snapshots], dtype="i8")
+    stacked = {k: np.stack([a[k] for _, a in snapshots]) for k in snapshots[0][1]}
+    static = {"r": pop.r, "R": pop.R, "u": pop.u, "phi": pop.phi}
+    out = {name: (var.dims, static[name], _attrs(var)) for name, var in ASPERITY_VARIABLES.items()}
+    per_step = {"snapshot_step": steps, "asperity_delta_n": stacked["delta_n"],
+                "asperity_theta": stacked["theta"], "asperity_force": stacked["force"],
+                "asperity_state": stacked["state"]}
+    for name, var in SNAPSHOT_VARIABLES.items():
+        out[name] = (var.dims, per_step[name], _attrs(var))
+    out["asperity_state"][2].update(flag_values=np.array([0, 1, 2, 3], dtype="i1"),
+                                    flag_meanings="out_of_contact stick partial_slip full_slip")
+    return out
+
+
+def run_attributes(params, *, n, seed, sampler, law, policy, path, version, call) -> dict:
+    """Global attributes of a run (CF conventions; every parameter with its unit)."""
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    attrs = {
+        "Conventions": "CF-1.8",
+        "title": f"asperity_sim run: {path.name} path, law {law}, policy {policy}",
+        "source": f"asperity_sim {version}",
+        "history": f"{now} {call}",
+        "date_created": now,
+        "references": PAPER,
+        "law": law,
+        "policy": policy,
+        "sampler": sampler,
+        "n_asperities": int(n),
+        "seed": int(seed) if seed is not None else -1,
+        "seed_note": "-1 means unseeded (not reproducible)" if seed is None else "numpy PCG64 / scipy Sobol seed",
+        "load_path": path.describe(),
+        "asperity_sim_version": version,
+    }
+    units = params.units()
+    for name, value in params.as_dict().items():
+        attrs[f"param_{name}"] = float(value)
+        attrs[f"param_{name}_units"] = units[name]
+    return attrs

@@ -1,0 +1,58 @@
+"""Registry of output variables: name -> dims, dtype, units, long name.
+
+The recorder builds datasets only from this table, so every variable written has CF
+``units`` and a ``long_name`` (a test checks it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Var:
+    dims: tuple
+    dtype: str
+    units: str
+    long_name: str
+
+
+STEP_VARIABLES = {
+    "displacement": Var(("step", "axis"), "f8", "m",
+                        "interface displacement Delta (axis 1: closure, axes 2-3: shear)"),
+    "stress": Var(("step", "axis"), "f8", "Pa", "interface stress sigma (axis 1: compression positive)"),
+    "stress_stderr": Var(("step", "axis"), "f8", "Pa", "Monte Carlo standard error of the interface stress"),
+    "tangent": Var(("step", "axis", "axis_k"), "f8", "Pa m-1", "tangent stiffness d sigma_axis / d Delta_axis_k"),
+    "n_contact": Var(("step",), "i8", "1", "number of sampled asperities in contact"),
+    "n_slip": Var(("step",), "i8", "1", "number of sampled asperities in full slip"),
+    "theta_am": Var(("step",), "f8", "rad", "average asperity orientation extent theta_am (Eq. 29)"),
+    "mean_theta": Var(("step",), "f8", "rad", "mean meridional orientation theta of the asperities in contact"),
+    "stage": Var(("step",), "i4", "1", "stage of the load path (0: initial state)"),
+    "control": Var(("step", "axis"), "i1", "1", "control of each component (0: displacement, 1: stress)"),
+    "iterations": Var(("step",), "i4", "1", "Newton iterations of the increment"),
+    "residual": Var(("step",), "f8", "1", "final scaled residual max|sigma_f - target_f| / stress scale"),
+    "cutbacks": Var(("step",), "i4", "1", "increment halvings before convergence"),
+}
+
+ASPERITY_VARIABLES = {
+    "r": Var(("asperity",), "f8", "m", "asperity height below the highest summit"),
+    "R": Var(("asperity",), "f8", "m", "relative radius of curvature"),
+    "u": Var(("asperity",), "f8", "rad", "shifted meridional coordinate u"),
+    "phi": Var(("asperity",), "f8", "rad", "azimuth phi of the asperity contact"),
+}
+
+SNAPSHOT_VARIABLES = {
+    "snapshot_step": Var(("snapshot",), "i8", "1", "step at which the snapshot was taken"),
+    "asperity_delta_n": Var(("snapshot", "asperity"), "f8", "m", "normal overlap delta_n of each asperity"),
+    "asperity_theta": Var(("snapshot", "asperity"), "f8", "rad", "meridional orientation theta of each asperity"),
+    "asperity_force": Var(("snapshot", "asperity", "axis"), "f8", "N", "asperity contact force in the global frame"),
+    "asperity_state": Var(("snapshot", "asperity"), "i1", "1",
+                          "contact state (0: out of contact, 1: stick, 3: full slip)"),
+}
+
+COORDS = {
+    "axis": Var(("axis",), "i4", "1", "component: 1 normal (closure), 2 and 3 shear"),
+    "axis_k": Var(("axis_k",), "i4", "1", "displacement component of the tangent"),
+}
+
+ALL_VARIABLES = {**STEP_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
