@@ -6,7 +6,7 @@ Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Populatio
 
 __version__ = "0.1.0"
 
-from . import paths, presets
+from . import paths, presets, reference
 from .params import InterfaceParams
 from .population import Population
 from .driver import ConvergenceError, SimulationError, StressNotReachableError, simulate
@@ -16,11 +16,3 @@ __all__ = [
     "InterfaceParams", "presets", "Population", "paths", "simulate", "reference", "SolverSettings",
     "SimulationError", "StressNotReachableError", "ConvergenceError", "__version__",
 ]
-
-
-def __getattr__(name):
-    if name == "reference":
-        from . import reference
-
-        return reference
-    raise AttributeError(f"module 'asperity_sim' has no attribute {name!r}")

@@ -193,6 +193,23 @@ class Population:
             sampler=sampler,
         )
 
+    @classmethod
+    def from_arrays(cls, params: InterfaceParams, r, R, u, phi) -> "Population":
+        """A population of given asperities (heights r [m], radii R [m], u [rad], phi [rad]), equally weighted."""
+        arrays = [np.atleast_1d(np.asarray(a, dtype=float)) for a in (r, R, u, phi)]
+        n = arrays[0].size
+        names = ("r", "R", "u", "phi")
+        for name, a in zip(names, arrays):
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"{name} must be a finite 1-D array of length {n}, got {a!r}")
+        r, R, u, phi = arrays
+        if np.any(r < 0) or np.any(R <= 0) or np.any((u < 0) | (u > 0.5 * math.pi)):
+            raise ValueError("need r >= 0 [m], R > 0 [m] and u in [0, pi/2] [rad]")
+        order = np.argsort(r, kind="stable")
+        return cls(params=params, r=r[order].copy(), R=R[order].copy(), u=u[order].copy(),
+                   cos_phi=np.cos(phi[order]), sin_phi=np.sin(phi[order]), weight=1.0 / n,
+                   seed=None, sampler="given")
+
     @property
     def n(self) -> int:
         return self.r.size

@@ -1,0 +1,177 @@
+"""Assembly of Eq. (23) over a population: exact tangent, standard error, statistics (SPEC §6)."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from asperity_sim import Population, presets, reference
+from asperity_sim.assemble import birth_angles, evaluate, snapshot
+
+um = 1e-6
+R1, S1 = presets.R1, presets.S1
+
+
+def fd_tangent(pop, delta, h, **kw):
+    T = np.empty((3, 3))
+    for k in range(3):
+        dp, dm = np.array(delta, float), np.array(delta, float)
+        dp[k] += h
+        dm[k] -= h
+        T[:, k] = (evaluate(pop, dp, **kw).stress - evaluate(pop, dm, **kw).stress) / (2 * h)
+    return T
+
+
+def one_asperity(params, r, R, u, phi):
+    return Population.from_arrays(params, [r], [R], [u], [phi])
+
+
+# one asperity in each state: (delta, expected state), for R1 and r = 2 um, R = 40 um
+STATES = {
+    "stick": ([6 * um, 0.0, 0.0], 1),
+    "partial_slip": ([6 * um, 0.8 * um, 0.3 * um], 2),
+    "full_slip": ([6 * um, 9 * um, -4 * um], 3),
+}
+
+
+@pytest.mark.parametrize("state", STATES)
+@pytest.mark.parametrize("u", [0.0, 0.4, 1.3])
+def test_tangent_single_asperity_each_state(state, u):
+    pop = one_asperity(R1, 2 * um, 40 * um, u, 0.9)
+    delta, code = STATES[state]
+    ev = evaluate(pop, delta)
+    assert ev.n_contact == 1
+    if u == 0.0:  # theta = 0: the local state is exactly the one intended
+        assert snapshot(pop, delta)["state"][0] == code
+    T_fd = fd_tangent(pop, delta, 1e-7 * um)
+    assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
+
+
+def test_tangent_includes_theta_change_with_closure():
+    """Under `follow`, theta = (2/pi) u theta_m(c, R) moves with Delta_1 (SPEC §3, §6)."""
+    pop = one_asperity(R1, 1 * um, 30 * um, 1.2, 0.3)
+    delta = [10 * um, 2 * um, 1 * um]
+    ev = evaluate(pop, delta)
+    T_fd = fd_tangent(pop, delta, 1e-7 * um)
+    assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-7 * np.abs(T_fd).max())
+    # birth policy with the angle frozen: the theta term vanishes, and FD at frozen angle agrees
+    tb = np.full(1, np.nan)
+    birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, 1, np.array(delta), R1.r_o, R1.k_e, tb)
+    assert np.isfinite(tb[0])
+    ev_b = evaluate(pop, delta, policy="birth", theta_birth=tb)
+    assert np.allclose(ev_b.stress, ev.stress, rtol=1e-14)
+    T_fd_b = fd_tangent(pop, delta, 1e-7 * um, policy="birth", theta_birth=tb)
+    assert np.allclose(ev_b.tangent, T_fd_b, rtol=1e-6, atol=1e-7 * np.abs(T_fd_b).max())
+    assert np.abs(ev_b.tangent[:, 0] - ev.tangent[:, 0]).max() > 1e-3 * np.abs(ev.tangent).max()
+
+
+@pytest.mark.parametrize("delta_um", [(15, 3, 1), (15, 15, 0), (15, 15, 15), (6, 0.5, -0.2), (10, -4, 6)])
+def test_tangent_population_against_finite_differences(delta_um):
+    pop = Population.sample(R1, 4000, seed=11)
+    delta = np.array(delta_um) * um
+    ev = evaluate(pop, delta)
+    assert ev.n_contact > 0
+    T_fd = fd_tangent(pop, delta, 1e-6 * um)
+    assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
+
+
+def test_taylor_remainder_orders():
+    """First-order remainder falls like h, second-order like h² (contacts entering and leaving)."""
+    pop = Population.sample(R1, 3000, seed=5)
+    delta = np.array([12, 5, -2]) * um
+    direction = np.array([0.6, -0.5, 0.62]) * um
+    ev = evaluate(pop, delta)
+    hs = np.array([1e-1, 5e-2, 2.5e-2, 1.25e-2, 6.25e-3])
+    r0, r1 = [], []
+    for h in hs:
+        s = evaluate(pop, delta + h * direction).stress
+        r0.append(np.linalg.norm(s - ev.stress))
+        r1.append(np.linalg.norm(s - ev.stress - h * ev.tangent @ direction))
+    slope0 = np.polyfit(np.log(hs), np.log(r0), 1)[0]
+    slope1 = np.polyfit(np.log(hs), np.log(r1), 1)[0]
+    assert slope0 == pytest.approx(1.0, abs=0.1)
+    assert slope1 == pytest.approx(2.0, abs=0.25)
+
+
+def test_thread_count_does_not_change_the_answer():
+    pop = Population.sample(S1, 50_000, seed=2)
+    delta = np.array([6, 2, 1]) * um
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        a = evaluate(pop, delta)
+        numba.set_num_threads(before)
+        b = evaluate(pop, delta)
+    finally:
+        numba.set_num_threads(before)
+    assert np.array_equal(a.stress, b.stress) and np.array_equal(a.tangent, b.tangent)
+
+
+def test_skipped_asperities_are_out_of_contact():
+    pop = Population.sample(R1, 20_000, seed=3)
+    delta = np.array([15, 3, 1]) * um
+    snap = snapshot(pop, delta)
+    ev = evaluate(pop, delta)
+    assert np.all(snap["delta_n"][ev.n_active:] <= 0.0)
+    assert (snap["delta_n"] > 0).sum() == ev.n_contact
+    assert (snap["state"] == 3).sum() == ev.n_slip
+    assert np.allclose(R1.N * pop.weight * snap["force"].sum(axis=0), ev.stress, rtol=1e-12)
+
+
+@pytest.mark.statistical
+def test_standard_error_matches_spread_of_replicas():
+    """The per-run standard error agrees with the scatter of independent replicas."""
+    delta = np.array([15, 3, 1]) * um
+    runs = [evaluate(Population.sample(R1, 2000, seed=100 + i), delta) for i in range(60)]
+    stress = np.array([e.stress for e in runs])
+    se = np.array([e.stderr for e in runs]).mean(axis=0)
+    sd = stress.std(axis=0, ddof=1)
+    # the sample s.d. of 60 replicas has relative s.e. ~ 1/sqrt(2*59) ~ 0.09: allow 4 of those
+    assert np.all(np.abs(sd / se - 1.0) < 4 * math.sqrt(1 / (2 * 59)))
+
+
+@pytest.mark.statistical
+def test_isotropy_sigma2_equals_sigma3():
+    pop = Population.sample(R1, 200_000, seed=8)
+    a = evaluate(pop, np.array([15, 6, 0]) * um)
+    b = evaluate(pop, np.array([15, 0, 6]) * um)
+    assert abs(a.stress[1] - b.stress[2]) < 4 * math.hypot(a.stderr[1], b.stderr[2])
+    assert abs(a.stress[0] - b.stress[0]) < 4 * math.hypot(a.stderr[0], b.stderr[0])
+
+
+# a dozen points of the Table 1 sets, anisotropic cases included
+REFERENCE_POINTS = [
+    ("R1", {}, (5, 0, 0)), ("R1", {}, (15, 0, 0)), ("R1", {}, (15, 3, 1)), ("R1", {}, (15, 15, 0)),
+    ("R1", {}, (15, 15, 15)), ("S1", {}, (6, 0, 0)), ("S1", {}, (6, 6, 0)), ("S1", {}, (3, 1, 2)),
+    ("R2", {}, (100, 0, 0)), ("S2", {}, (150, 20, -10)),
+    ("R1", {"b": 0.8, "c": 0.1, "d": -0.05}, (15, 3, 1)), ("S1", {"b": -0.6, "c": 0.2, "d": 0.2}, (6, 2, -3)),
+    ("R1", {"e": 0.3}, (12, 5, 5)),
+]
+
+
+@pytest.mark.statistical
+@pytest.mark.parametrize("name,changes,delta_um", REFERENCE_POINTS)
+def test_monte_carlo_within_four_standard_errors_of_quadrature(name, changes, delta_um):
+    params = presets.TABLE1[name].replace(**changes)
+    delta = np.array(delta_um) * um
+    pop = Population.sample(params, 100_000, seed=21)
+    ev = evaluate(pop, delta)
+    ref = reference.stress(params, delta)
+    for i in range(3):
+        if ev.stderr[i] == 0.0:  # no shear displacement: every shear force is exactly zero... by symmetry only
+            assert abs(ref[i]) <= 1e-9 * abs(ref[0])
+            continue
+        assert abs(ev.stress[i] - ref[i]) < 4 * ev.stderr[i], (i, ev.stress[i], ref[i], ev.stderr[i])
+
+
+@pytest.mark.statistical
+def test_flat_on_rough_against_greenwood_williamson():
+    """e = 0: every contact is normal to the plane, sigma_1 is a 1-D GW integral (SPEC §3)."""
+    params = R1.replace(e=0.0)
+    pop = Population.sample(params, 100_000, seed=4)
+    for d1 in (10 * um, 20 * um):
+        ev = evaluate(pop, [d1, 0.0, 0.0])
+        gw = reference.sigma_1_gw(params, d1)
+        assert abs(ev.stress[0] - gw) < 4 * ev.stderr[0]
+        assert ev.mean_theta == 0.0
