@@ -26,9 +26,11 @@ from .geometry import local_displacement, theta_m_and_slope
 from .laws.paper import paper_local
 
 CHUNK = 2048
-# layout of one row of partial sums
-I_F, I_F2, I_T, I_NC, I_NS, I_TH = 0, 3, 6, 15, 16, 17
-N_ACC = 18
+# layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
+# tangent (9), contact and slip counts, sum of theta over contacts
+I_F, I_FF, I_T, I_NC, I_NS, I_TH = 0, 3, 9, 18, 19, 20
+N_ACC = 21
+_FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 POLICIES = ("follow", "birth")
 LAWS = ("paper",)
 
@@ -112,20 +114,23 @@ def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star,
             acc[3] += g0 * g0
             acc[4] += g1 * g1
             acc[5] += g2 * g2
+            acc[6] += g0 * g1
+            acc[7] += g0 * g2
+            acc[8] += g1 * g2
             # T = Q^T A (+ v e_1^T)
-            acc[6] += n0 * A00 + s0 * A10 + t0 * A20 + v0
-            acc[7] += n0 * A01 + s0 * A11 + t0 * A21
-            acc[8] += n0 * A02 + s0 * A12 + t0 * A22
-            acc[9] += n1 * A00 + s1 * A10 + t1 * A20 + v1
-            acc[10] += n1 * A01 + s1 * A11 + t1 * A21
-            acc[11] += n1 * A02 + s1 * A12 + t1 * A22
-            acc[12] += n2 * A00 + s2 * A10 + t2 * A20 + v2
-            acc[13] += n2 * A01 + s2 * A11 + t2 * A21
-            acc[14] += n2 * A02 + s2 * A12 + t2 * A22
-            acc[15] += 1.0
+            acc[9] += n0 * A00 + s0 * A10 + t0 * A20 + v0
+            acc[10] += n0 * A01 + s0 * A11 + t0 * A21
+            acc[11] += n0 * A02 + s0 * A12 + t0 * A22
+            acc[12] += n1 * A00 + s1 * A10 + t1 * A20 + v1
+            acc[13] += n1 * A01 + s1 * A11 + t1 * A21
+            acc[14] += n1 * A02 + s1 * A12 + t1 * A22
+            acc[15] += n2 * A00 + s2 * A10 + t2 * A20 + v2
+            acc[16] += n2 * A01 + s2 * A11 + t2 * A21
+            acc[17] += n2 * A02 + s2 * A12 + t2 * A22
+            acc[18] += 1.0
             if slip:
-                acc[16] += 1.0
-            acc[17] += th
+                acc[19] += 1.0
+            acc[20] += th
         partial[ic, :] = acc
 
 
@@ -159,7 +164,7 @@ class Evaluation:
     """Interface response at one displacement (SPEC §6).
 
     stress (3,) [Pa], stderr (3,) [Pa] (Monte Carlo standard error of each component),
-    tangent (3, 3) [Pa/m] (d sigma_i / d Delta_k), n_contact and n_slip (asperity counts),
+    covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3) [Pa/m] (d sigma_i / d Delta_k), n_contact and n_slip (asperity counts),
     mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
     that could touch and were visited).
     """
@@ -167,6 +172,7 @@ class Evaluation:
     delta: np.ndarray
     stress: np.ndarray
     stderr: np.ndarray
+    covariance: np.ndarray
     tangent: np.ndarray
     n_contact: int
     n_slip: int
@@ -226,17 +232,19 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
 def _finish(pop, d, s, n_active) -> Evaluation:
     n = pop.n
     scale = pop.params.N * pop.weight
-    sum_f, sum_f2 = s[I_F:I_F + 3], s[I_F2:I_F2 + 3]
+    sum_f = s[I_F:I_F + 3]
+    cov = np.zeros((3, 3))
     if n > 1:
-        var = np.maximum(sum_f2 - sum_f * sum_f / n, 0.0) / (n - 1)
-        stderr = scale * n * np.sqrt(var / n)
-    else:
-        stderr = np.zeros(3)
+        # covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n
+        for (i, j), sum_ff in zip(_FF_PAIRS, s[I_FF:I_FF + 6]):
+            cov[i, j] = cov[j, i] = (sum_ff - sum_f[i] * sum_f[j] / n) / (n - 1) * (scale * n) ** 2 / n
+    stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
     n_contact = int(round(s[I_NC]))
     return Evaluation(
         delta=d,
         stress=scale * sum_f,
         stderr=stderr,
+        covariance=cov,
         tangent=scale * s[I_T:I_T + 9].reshape(3, 3),
         n_contact=n_contact,
         n_slip=int(round(s[I_NS])),

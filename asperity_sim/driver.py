@@ -163,9 +163,34 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     return ds_out
 
 
+def solution_stderr(ev, free):
+    """Standard errors of the recorded stress and displacement under mixed control.
+
+    The Monte Carlo error dsigma of the estimate moves the solved displacements:
+    dDelta_f = -T_ff^-1 dsigma_f, and the reported stresses of the displacement-controlled
+    components by dsigma_d - T_df T_ff^-1 dsigma_f (delta method, first order, using the
+    covariance of the estimate).  Returns (stress_stderr [Pa], displacement_stderr [m]).
+    """
+    free = np.asarray(free, dtype=bool)
+    if not free.any():
+        return ev.stderr, np.zeros(3)
+    fixed = ~free
+    A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
+    M_stress = np.zeros((3, 3))
+    M_stress[np.ix_(fixed, fixed)] = np.eye(int(fixed.sum()))
+    M_stress[np.ix_(fixed, free)] = -ev.tangent[np.ix_(fixed, free)] @ A
+    M_disp = np.zeros((3, 3))
+    M_disp[np.ix_(free, free)] = -A
+    var_s = np.einsum("ij,jk,ik->i", M_stress, ev.covariance, M_stress)
+    var_d = np.einsum("ij,jk,ik->i", M_disp, ev.covariance, M_disp)
+    return np.sqrt(np.maximum(var_s, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
+
+
 def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks):
+    stress_se, disp_se = solution_stderr(ev, control)
     rec.append(
-        displacement=ev.delta, stress=ev.stress, stress_stderr=ev.stderr, tangent=ev.tangent,
+        displacement=ev.delta, stress=ev.stress, stress_stderr=stress_se, displacement_stderr=disp_se,
+        tangent=ev.tangent,
         n_contact=ev.n_contact, n_slip=ev.n_slip,
         theta_am=_theta_am(params, max(0.0, params.r_o + ev.delta[0])), mean_theta=ev.mean_theta,
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
