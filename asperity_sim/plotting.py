@@ -1,0 +1,162 @@
+"""Figures drawn from run files alone (netCDF written by :func:`asperity_sim.simulate`).
+
+Owns plotting: every function takes datasets (as read back from disk) and returns a
+matplotlib Figure.  Monte Carlo standard errors are drawn as bands of ±2 s.e.; a
+quadrature reference, when the file holds one (``reference_stress``), as a dashed line.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+MPA, UM = 1e-6, 1e6
+BAND = 2.0  # half-width of the error bands, in standard errors
+COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green"}
+
+
+def path_length(ds) -> np.ndarray:
+    """Cumulative length of the displacement path [m], the abscissa of multi-stage plots."""
+    d = ds["displacement"].values
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(d, axis=0), axis=1))])
+
+
+def _band(ax, x, y, se, color, label=None, **kw):
+    ax.plot(x, y, color=color, label=label, **kw)
+    ax.fill_between(x, y - BAND * se, y + BAND * se, color=color, alpha=0.25, lw=0)
+
+
+def _stage_marks(ax, ds, x):
+    stage = ds["stage"].values
+    for i in np.flatnonzero(np.diff(stage) != 0)[1:]:
+        ax.axvline(x[i], color="0.6", lw=0.8, ls=":")
+
+
+def plot_three_step(runs: dict):
+    """Fig. 11: sigma_1, sigma_2, sigma_3 and theta_am along the 3-step path, one panel per interface."""
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.5 * len(runs), 4.2), squeeze=False)
+    for ax, (name, ds) in zip(axes[0], runs.items()):
+        x = path_length(ds) * UM
+        for k in (1, 2, 3):
+            s = ds["stress"].sel(axis=k).values * MPA
+            se = ds["stress_stderr"].sel(axis=k).values * MPA
+            _band(ax, x, s, se, COLORS[k], label=rf"$\sigma_{k}$")
+            if "reference_stress" in ds:
+                ax.plot(x, ds["reference_stress"].sel(axis=k).values * MPA, "k--", lw=0.9,
+                        label="quadrature" if k == 1 else None)
+        _stage_marks(ax, ds, x)
+        ax.set_xlabel(r"path length $\int|d\Delta|$ [µm] (steps 1 | 2 | 3)")
+        ax.set_ylabel("interface stress [MPa]")
+        ax.set_title(f"{name}: 3-step path, n = {ds.attrs.get('n_asperities')}")
+        ax2 = ax.twinx()
+        ax2.plot(x, np.degrees(ds["theta_am"].values), color="0.35", lw=1.2, ls="-.", label=r"$\theta_{am}$")
+        ax2.set_ylabel(r"orientation extent $\theta_{am}$ [deg]")
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, loc="upper left", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_normal_closure(runs: dict):
+    """Fig. 12: sigma_1 and theta_am against Delta_1 for each interface."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (name, ds), color in zip(runs.items(), ("tab:red", "tab:blue", "tab:green", "tab:orange")):
+        d1 = ds["displacement"].sel(axis=1).values
+        se_d1 = ds["displacement_stderr"].sel(axis=1).values
+        s1 = ds["stress"].sel(axis=1).values * MPA
+        a1.plot(d1 * 1e3, s1, color=color, label=f"{name} (Monte Carlo)")
+        a1.fill_betweenx(s1, (d1 - BAND * se_d1) * 1e3, (d1 + BAND * se_d1) * 1e3, color=color, alpha=0.25, lw=0)
+        if "reference_displacement" in ds:
+            a1.plot(ds["reference_displacement"].sel(axis=1).values * 1e3, s1, "k--", lw=0.9)
+        a2.plot(d1 * 1e3, np.degrees(ds["theta_am"].values), color=color, label=name)
+    a1.plot([], [], "k--", lw=0.9, label="quadrature")
+    a1.set_xlabel(r"closure $\Delta_1$ [mm]")
+    a1.set_ylabel(r"normal stress $\sigma_1$ [MPa]")
+    a1.legend(fontsize=8)
+    a1.set_title("normal closure")
+    a2.set_xlabel(r"closure $\Delta_1$ [mm]")
+    a2.set_ylabel(r"average orientation extent $\theta_{am}$ [deg]")
+    a2.legend(fontsize=8)
+    a2.set_title(r"orientation extent (Eq. 29)")
+    fig.tight_layout()
+    return fig
+
+
+def shear_stage(ds):
+    """The steps after the first stage (the shear of a constant-normal-stress test), with its start."""
+    start = int(np.flatnonzero(ds["stage"].values >= 2)[0]) - 1
+    return ds.isel(step=slice(start, None))
+
+
+def plot_constant_normal_shear(runs: dict):
+    """Fig. 13: shear resistance sigma_2/sigma_1 and change of Delta_1 against Delta_2."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (name, ds), color in zip(runs.items(), ("tab:red", "tab:blue", "tab:green", "tab:orange")):
+        sh = shear_stage(ds)
+        d2 = sh["displacement"].sel(axis=2).values * UM
+        s1 = sh["stress"].sel(axis=1).values
+        ratio = sh["stress"].sel(axis=2).values / s1
+        se_ratio = sh["stress_stderr"].sel(axis=2).values / s1
+        _band(a1, d2, ratio, se_ratio, color, label=f"{name}")
+        d1 = sh["displacement"].sel(axis=1).values
+        change = (d1 - d1[0]) * UM
+        se_d1 = sh["displacement_stderr"].sel(axis=1).values * UM
+        _band(a2, d2, change, se_d1, color, label=f"{name}")
+        if "reference_stress" in sh:
+            ref = sh["reference_stress"]
+            a1.plot(d2, ref.sel(axis=2).values / ref.sel(axis=1).values, "k--", lw=0.9)
+            rd1 = sh["reference_displacement"].sel(axis=1).values
+            a2.plot(d2, (rd1 - rd1[0]) * UM, "k--", lw=0.9)
+    sigma_n = float(np.median(shear_stage(next(iter(runs.values())))["stress"].sel(axis=1).values)) * MPA
+    a1.plot([], [], "k--", lw=0.9, label="quadrature")
+    a1.axhline(float(next(iter(runs.values())).attrs.get("param_mu", 1.0)), color="0.6", lw=0.8, ls=":")
+    a1.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
+    a1.set_ylabel(r"shear resistance $\sigma_2/\sigma_1$ [1]")
+    a1.set_title(rf"shear at constant $\sigma_1$ = {sigma_n:.0f} MPa")
+    a1.legend(fontsize=8)
+    a2.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
+    a2.set_ylabel(r"change of closure $\Delta_1 - \Delta_1^0$ [µm] (> 0: compaction)")
+    a2.axhline(0.0, color="0.6", lw=0.8)
+    a2.legend(fontsize=8)
+    a2.set_title("normal displacement during shear")
+    fig.tight_layout()
+    return fig
+
+
+def plot_run(ds):
+    """Standard figure of any run: stresses, shear resistance, closure, contact and slip fractions."""
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    x = path_length(ds) * UM
+    ax = axes[0, 0]
+    for k in (1, 2, 3):
+        _band(ax, x, ds["stress"].sel(axis=k).values * MPA, ds["stress_stderr"].sel(axis=k).values * MPA,
+              COLORS[k], label=rf"$\sigma_{k}$")
+    ax.set_ylabel("interface stress [MPa]")
+    ax = axes[0, 1]
+    s1 = ds["stress"].sel(axis=1).values
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.hypot(ds["stress"].sel(axis=2).values, ds["stress"].sel(axis=3).values)
+        ratio = np.where(s1 > 0, tau / s1, np.nan)
+    ax.plot(x, ratio, color="k")
+    ax.set_ylabel(r"shear resistance $|\sigma_{23}|/\sigma_1$ [1]")
+    ax = axes[1, 0]
+    for k in (1, 2, 3):
+        _band(ax, x, ds["displacement"].sel(axis=k).values * UM,
+              ds["displacement_stderr"].sel(axis=k).values * UM, COLORS[k], label=rf"$\Delta_{k}$")
+    ax.set_ylabel("interface displacement [µm]")
+    ax = axes[1, 1]
+    n = float(ds.attrs.get("n_asperities", 1))
+    ax.plot(x, ds["n_contact"].values / n, label="in contact")
+    ax.plot(x, ds["n_slip"].values / n, label="in full slip")
+    ax.set_ylabel("fraction of the population [1]")
+    for ax in axes.ravel():
+        ax.set_xlabel(r"path length $\int|d\Delta|$ [µm]")
+        _stage_marks(ax, ds, x)
+        ax.legend(fontsize=8)
+    fig.suptitle(ds.attrs.get("title", "asperity_sim run"))
+    fig.tight_layout()
+    return fig
