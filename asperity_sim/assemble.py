@@ -221,7 +221,8 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     else:
         tb = _EMPTY
     ws = workspace if workspace is not None else Workspace(pop.n)
-    n_active = pop.n_reachable(d)
+    theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
+    n_active = pop.n_reachable(d, theta_max)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
                    p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, ws.partial)

@@ -133,7 +133,7 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
                 ev = result.evaluation
                 delta = ev.delta.copy()
                 if theta_birth is not None:
-                    birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.n_reachable(delta), delta,
+                    birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, delta,
                                  params.r_o, params.k_e, theta_birth)
                 s = s_new
                 _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,

@@ -18,6 +18,7 @@ import math
 import numbers
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numba
 import numpy as np
@@ -223,14 +224,30 @@ class Population:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in (self.r, self.R, self.u, self.cos_phi, self.sin_phi))
 
-    def n_reachable(self, delta) -> int:
-        """Number of asperities that can touch at displacement delta (SPEC §4).
+    @cached_property
+    def R_min(self) -> float:
+        """Smallest relative radius in the population [m] (largest orientation extent)."""
+        return float(self.R.min())
 
-        delta_n = cos(theta)(Delta_1 - r) + sin(theta)(shear part) <= max(Delta_1 - r, 0) + |Delta_shear|
-        for any theta in [0, pi/2], so no asperity with r >= Delta_1 + |Delta_shear| is in contact.
+    def n_reachable(self, delta, theta_max: float = 0.0) -> int:
+        """Number of asperities, lowest first, that can touch at displacement delta (SPEC §4).
+
+        delta_n = cos(theta)(Delta_1 - r) + sin(theta) s with s <= |Delta_shear|, so contact needs
+        r < Delta_1 + |Delta_shear| tan(theta).  theta <= theta_m(c, R_min) for every asperity
+        under policy ``follow``; ``theta_max`` [rad] raises the bound for frozen (``birth``) angles.
         """
-        r_max = delta[0] + math.hypot(delta[1], delta[2])
-        return int(np.searchsorted(self.r, r_max, side="left"))
+        shear = math.hypot(delta[1], delta[2])
+        closure = max(0.0, self.params.r_o + delta[0])
+        y = 1.0 - self.params.k_e * closure / self.R_min
+        theta = max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
+        if shear == 0.0:
+            r_max = delta[0]
+        elif theta >= 0.5 * math.pi - 1e-9:
+            return self.n
+        else:
+            r_max = delta[0] + shear * math.tan(theta)
+        r_max += 1e-12 * max(abs(r_max), self.params.beta)  # round-off margin at the contact edge
+        return int(np.searchsorted(self.r, r_max, side="right"))
 
     def evaluate(self, delta, law: str = "paper", policy: str = "follow", theta_birth=None):
         """Interface stress, standard error, tangent and contact counts at delta (SPEC §6).

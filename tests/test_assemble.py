@@ -108,9 +108,11 @@ def test_thread_count_does_not_change_the_answer():
     assert np.array_equal(a.stress, b.stress) and np.array_equal(a.tangent, b.tangent)
 
 
-def test_skipped_asperities_are_out_of_contact():
-    pop = Population.sample(R1, 20_000, seed=3)
-    delta = np.array([15, 3, 1]) * um
+@pytest.mark.parametrize("delta_um", [(15, 3, 1), (18, 50, 0), (5, -30, 20), (30, 0, 0), (0, 40, 0)])
+def test_skipped_asperities_are_out_of_contact(delta_um):
+    """Asperities beyond the height bound are never in contact, steep ones under large shear included."""
+    pop = Population.sample(R1.replace(R_sigma=20e-6), 20_000, seed=3)
+    delta = np.array(delta_um) * um
     snap = snapshot(pop, delta)
     ev = evaluate(pop, delta)
     assert np.all(snap["delta_n"][ev.n_active:] <= 0.0)
