@@ -63,8 +63,8 @@ _RANGES = {
     "G": (0.0, None, True, False),
     "nu": (-1.0, 0.5, True, False),
     "b": (-1.0, 2.0, False, False),
-    "c": (-1.0 / 3.0, 1.0 / 3.0, False, False),
-    "d": (-1.0 / 3.0, 1.0 / 3.0, False, False),
+    "c": (None, None, False, False),  # bounded jointly with b and d below
+    "d": (None, None, False, False),
 }
 
 

@@ -218,7 +218,8 @@ class Population:
     @property
     def phi(self) -> np.ndarray:
         """Azimuth phi [rad] in [0, 2 pi)."""
-        return np.mod(np.arctan2(self.sin_phi, self.cos_phi), 2.0 * math.pi)
+        phi = np.mod(np.arctan2(self.sin_phi, self.cos_phi), 2.0 * math.pi)
+        return np.where(phi >= 2.0 * math.pi, 0.0, phi)  # a tiny negative angle rounds up to 2 pi
 
     @property
     def nbytes(self) -> int:
