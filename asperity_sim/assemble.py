@@ -6,10 +6,10 @@ asperities that can touch (the population is sorted by height) in fixed-size chu
 under ``prange``; each chunk writes its partial sums to its own row of a caller-owned
 array, so the result does not depend on the number of threads.
 
-Tangent of one asperity, with Q = [n; s; t] (rows), local Jacobian J = d f_loc / d delta_loc
-and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
+Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
+Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
 
-    d f / d Delta_k = Q^T J Q e_k + [Q^T J (delta_s, -delta_n, 0) + f_n s - f_s n] theta_1 [k = 1]
+    d f / d Delta = Q^T J K + (f_n s - f_s n) theta_1 e_1^T
 
 using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
 """
@@ -43,93 +43,118 @@ def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
     return scale * th_m, scale * slope * dclosure_d1
 
 
+@numba.njit(cache=True, inline="always")
+def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, slip):
+    """Add one contact's global force, force products, tangent and counts to ``acc``.
+
+    ``J`` (3x3) is d(f_n, f_s, f_t)/d(delta_n, a_s, a_t) for the law's local variables
+    (a_s, a_t) = (delta_s, delta_t) (``paper``) or their increments (history laws).  Their
+    kinematic Jacobian K = d(delta_n, a_s, a_t)/d Delta has rows n + delta_s theta_1 e_1,
+    s - rho theta_1 e_1 and t, with rho = delta_n for totals and n.dDelta for increments.
+    T = Q^T J K + (f_n s - f_s n) theta_1 e_1^T.
+    """
+    n0, n1, n2 = ct, st * cp, st * sp
+    s0, s1, s2 = -st, ct * cp, ct * sp
+    t0, t1, t2 = 0.0, -sp, cp
+    g0 = f_n * n0 + f_s * s0 + f_t * t0
+    g1 = f_n * n1 + f_s * s1 + f_t * t1
+    g2 = f_n * n2 + f_s * s2 + f_t * t2
+    # K, row by row (theta enters column 0 only)
+    k00, k01, k02 = n0 + ds_tot * th1, n1, n2
+    k10, k11, k12 = s0 - rho * th1, s1, s2
+    k20, k21, k22 = t0, t1, t2
+    # A = J K
+    A00 = J[0, 0] * k00 + J[0, 1] * k10 + J[0, 2] * k20
+    A01 = J[0, 0] * k01 + J[0, 1] * k11 + J[0, 2] * k21
+    A02 = J[0, 0] * k02 + J[0, 1] * k12 + J[0, 2] * k22
+    A10 = J[1, 0] * k00 + J[1, 1] * k10 + J[1, 2] * k20
+    A11 = J[1, 0] * k01 + J[1, 1] * k11 + J[1, 2] * k21
+    A12 = J[1, 0] * k02 + J[1, 1] * k12 + J[1, 2] * k22
+    A20 = J[2, 0] * k00 + J[2, 1] * k10 + J[2, 2] * k20
+    A21 = J[2, 0] * k01 + J[2, 1] * k11 + J[2, 2] * k21
+    A22 = J[2, 0] * k02 + J[2, 1] * k12 + J[2, 2] * k22
+    # frame rotation at fixed local force: dn/dtheta = s, ds/dtheta = -n
+    v0 = (f_n * s0 - f_s * n0) * th1
+    v1 = (f_n * s1 - f_s * n1) * th1
+    v2 = (f_n * s2 - f_s * n2) * th1
+    acc[0] += g0
+    acc[1] += g1
+    acc[2] += g2
+    acc[3] += g0 * g0
+    acc[4] += g1 * g1
+    acc[5] += g2 * g2
+    acc[6] += g0 * g1
+    acc[7] += g0 * g2
+    acc[8] += g1 * g2
+    acc[9] += n0 * A00 + s0 * A10 + t0 * A20 + v0
+    acc[10] += n0 * A01 + s0 * A11 + t0 * A21
+    acc[11] += n0 * A02 + s0 * A12 + t0 * A22
+    acc[12] += n1 * A00 + s1 * A10 + t1 * A20 + v1
+    acc[13] += n1 * A01 + s1 * A11 + t1 * A21
+    acc[14] += n1 * A02 + s1 * A12 + t1 * A22
+    acc[15] += n2 * A00 + s2 * A10 + t2 * A20 + v2
+    acc[16] += n2 * A01 + s2 * A11 + t2 * A21
+    acc[17] += n2 * A02 + s2 * A12 + t2 * A22
+    acc[18] += 1.0
+    if slip:
+        acc[19] += 1.0
+
+
+@numba.njit(cache=True, inline="always")
+def contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth):
+    """theta and d theta/d Delta_1 of asperity j: its birth angle while that contact lasts, else ``follow``."""
+    th, th1 = asperity_theta(u[j], inv_R, closure, k_e, dc)
+    if has_birth and not math.isnan(theta_birth[j]):
+        tb = theta_birth[j]
+        if math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3) > 0.0:
+            return tb, 0.0
+    return th, th1
+
+
+@numba.njit(cache=True, inline="always")
+def closure_and_slope(r_o, d1):
+    """c = max(0, r_o + Delta_1) and dc/dDelta_1 (SPEC §3)."""
+    closure = r_o + d1
+    if closure <= 0.0:
+        return 0.0, 0.0
+    return closure, 1.0
+
+
 @numba.njit(cache=True, parallel=True)
 def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, partial):
-    """Partial sums of forces, squared forces, tangents and counts for the ``paper`` law.
+    """Partial sums of forces, force products, tangents and counts for the ``paper`` law.
 
     ``theta_birth`` is empty (policy follow) or holds, per asperity, the frozen angle of a
     committed contact and NaN elsewhere (policy birth).  ``partial`` has shape
     (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure = r_o + d1
-    dc = 1.0
-    if closure <= 0.0:
-        closure = 0.0
-        dc = 0.0
+    closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_ACC)
+        J = np.zeros((3, 3))
         for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
-            inv_R = 1.0 / R[j]
             cp, sp = cos_phi[j], sin_phi[j]
-            th, th1 = asperity_theta(u[j], inv_R, closure, k_e, dc)
-            if has_birth and not math.isnan(theta_birth[j]):
-                tb = theta_birth[j]
-                dn_b = math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3)
-                if dn_b > 0.0:  # committed contact keeps its birth angle
-                    th, th1 = tb, 0.0
+            th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
             ct, st = math.cos(th), math.sin(th)
             dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
             if dn <= 0.0:
                 continue
             f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
                 dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
-            # frame vectors
-            n0, n1, n2 = ct, st * cp, st * sp
-            s0, s1, s2 = -st, ct * cp, ct * sp
-            t0, t1, t2 = 0.0, -sp, cp
-            # global force
-            g0 = f_n * n0 + f_s * s0 + f_t * t0
-            g1 = f_n * n1 + f_s * s1 + f_t * t1
-            g2 = f_n * n2 + f_s * s2 + f_t * t2
-            # local Jacobian J (rows f_n, f_s, f_t; columns delta_n, delta_s, delta_t)
             dst = math.sqrt(ds * ds + dt * dt)
             if dst > 0.0:
                 es, et = ds / dst, dt / dst
             else:
                 es, et = 0.0, 0.0
             extra = dF_dst - k_sec
-            Jsn, Jtn = dF_dn * es, dF_dn * et
-            Jss, Jst, Jtt = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
-            # A = J Q (3x3): row a of A = sum_b J[a, b] Q[b, :]
-            A00, A01, A02 = k_n * n0, k_n * n1, k_n * n2
-            A10 = Jsn * n0 + Jss * s0 + Jst * t0
-            A11 = Jsn * n1 + Jss * s1 + Jst * t1
-            A12 = Jsn * n2 + Jss * s2 + Jst * t2
-            A20 = Jtn * n0 + Jst * s0 + Jtt * t0
-            A21 = Jtn * n1 + Jst * s1 + Jtt * t1
-            A22 = Jtn * n2 + Jst * s2 + Jtt * t2
-            # theta term: w = J (delta_s, -delta_n, 0) in local components, then Q^T w + f_n s - f_s n
-            w0 = k_n * ds
-            w1 = Jsn * ds - Jss * dn
-            w2 = Jtn * ds - Jst * dn
-            v0 = (n0 * w0 + s0 * w1 + t0 * w2 + f_n * s0 - f_s * n0) * th1
-            v1 = (n1 * w0 + s1 * w1 + t1 * w2 + f_n * s1 - f_s * n1) * th1
-            v2 = (n2 * w0 + s2 * w1 + t2 * w2 + f_n * s2 - f_s * n2) * th1
-            acc[0] += g0
-            acc[1] += g1
-            acc[2] += g2
-            acc[3] += g0 * g0
-            acc[4] += g1 * g1
-            acc[5] += g2 * g2
-            acc[6] += g0 * g1
-            acc[7] += g0 * g2
-            acc[8] += g1 * g2
-            # T = Q^T A (+ v e_1^T)
-            acc[9] += n0 * A00 + s0 * A10 + t0 * A20 + v0
-            acc[10] += n0 * A01 + s0 * A11 + t0 * A21
-            acc[11] += n0 * A02 + s0 * A12 + t0 * A22
-            acc[12] += n1 * A00 + s1 * A10 + t1 * A20 + v1
-            acc[13] += n1 * A01 + s1 * A11 + t1 * A21
-            acc[14] += n1 * A02 + s1 * A12 + t1 * A22
-            acc[15] += n2 * A00 + s2 * A10 + t2 * A20 + v2
-            acc[16] += n2 * A01 + s2 * A11 + t2 * A21
-            acc[17] += n2 * A02 + s2 * A12 + t2 * A22
-            acc[18] += 1.0
-            if slip:
-                acc[19] += 1.0
+            J[0, 0] = k_n
+            J[1, 0], J[2, 0] = dF_dn * es, dF_dn * et
+            J[1, 1], J[1, 2] = k_sec + extra * es * es, extra * es * et
+            J[2, 1], J[2, 2] = extra * es * et, k_sec + extra * et * et
+            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, slip)
             acc[20] += th
         partial[ic, :] = acc
 
@@ -263,11 +288,7 @@ def asperity_snapshot(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, m
     has_birth = theta_birth.size > 0
     for j in numba.prange(r.size):
         cp, sp = cos_phi[j], sin_phi[j]
-        th, _ = asperity_theta(u[j], 1.0 / R[j], closure, k_e, 0.0)
-        if has_birth and not math.isnan(theta_birth[j]):
-            tb = theta_birth[j]
-            if math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3) > 0.0:
-                th = tb
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, has_birth)
         ct, st = math.cos(th), math.sin(th)
         dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
         delta_n_out[j] = dn
