@@ -23,16 +23,17 @@ import numba
 import numpy as np
 
 from .geometry import local_displacement, theta_m_and_slope
+from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
 
 CHUNK = 2048
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
-# tangent (9), contact and slip counts, sum of theta over contacts
-I_F, I_FF, I_T, I_NC, I_NS, I_TH = 0, 3, 9, 18, 19, 20
-N_ACC = 21
+# tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
+I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
+N_ACC = 22
 _FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 POLICIES = ("follow", "birth")
-LAWS = ("paper",)
+LAWS = ("paper", "mdr")
 
 
 @numba.njit(cache=True, inline="always")
@@ -44,7 +45,7 @@ def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
 
 
 @numba.njit(cache=True, inline="always")
-def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, slip):
+def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, state):
     """Add one contact's global force, force products, tangent and counts to ``acc``.
 
     ``J`` (3x3) is d(f_n, f_s, f_t)/d(delta_n, a_s, a_t) for the law's local variables
@@ -96,8 +97,10 @@ def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, slip):
     acc[16] += n2 * A01 + s2 * A11 + t2 * A21
     acc[17] += n2 * A02 + s2 * A12 + t2 * A22
     acc[18] += 1.0
-    if slip:
+    if state == 3:
         acc[19] += 1.0
+    elif state == 2:
+        acc[21] += 1.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -154,7 +157,71 @@ def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star,
             J[1, 0], J[2, 0] = dF_dn * es, dF_dn * et
             J[1, 1], J[1, 2] = k_sec + extra * es * es, extra * es * et
             J[2, 1], J[2, 2] = extra * es * et, k_sec + extra * et * et
-            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, slip)
+            state = 3 if slip else (2 if dst > 0.0 else 1)
+            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, state)
+            acc[20] += th
+        partial[ic, :] = acc
+
+
+@numba.njit(cache=True, inline="always")
+def fresh_spacing(r_j, R_j, dn_cap, k):
+    """Spring spacing of an asperity without history: covers delta_n up to 2 max(dn_cap - r, dn_cap/10)."""
+    return math.sqrt(2.0 * R_j * max(dn_cap - r_j, 0.1 * dn_cap)) / k
+
+
+@numba.njit(cache=True, inline="always")
+def committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e):
+    """delta_n of asperity j at the committed displacement, at its follow angle (no history)."""
+    closure_c, _ = closure_and_slope(r_o, delta_c[0])
+    th_c, _ = asperity_theta(u[j], inv_R, closure_c, k_e, 0.0)
+    dn_c, _, _ = local_displacement(delta_c[0] - r[j], delta_c[1], delta_c[2],
+                                    math.cos(th_c), math.sin(th_c), cp, sp)
+    return dn_c
+
+
+@numba.njit(cache=True, inline="always")
+def mdr_history(j, slot, w, h_slot, dn_c_slot, r, R, u, inv_R, cp, sp, delta_c, r_o, k_e, dn_cap, k):
+    """(slot index or -1, n_hist, h, committed overlap) of asperity j."""
+    sl = slot[j]
+    if sl >= 0:
+        dn_c = dn_c_slot[sl]
+        return sl, (k if dn_c > 0.0 else 0), h_slot[sl], dn_c
+    return -1, 0, fresh_spacing(r[j], R[j], dn_cap, k), committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
+
+
+@numba.njit(cache=True, parallel=True)
+def assemble_mdr(r, R, u, cos_phi, sin_phi, n_active, delta, delta_c, r_o, k_e, E_star, lam, mu, theta_birth,
+                 slot, w, h_slot, dn_c_slot, dn_cap, partial):
+    """Partial sums for the ``mdr`` law: trial springs from the committed history, never written.
+
+    ``slot[j]`` indexes the history arrays (w (m, k, 2), h_slot, dn_c_slot) of asperity j
+    or is -1 (no history: a fresh contact with spacing :func:`fresh_spacing`).
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    k = w.shape[1]
+    no_write = np.empty((0, 2))
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        acc = np.zeros(N_ACC)
+        J = np.zeros((3, 3))
+        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+            cp, sp = cos_phi[j], sin_phi[j]
+            inv_R = 1.0 / R[j]
+            th, th1 = contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+            ct, st = math.cos(th), math.sin(th)
+            dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+            if dn <= 0.0:
+                continue
+            rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+            sl, n_hist, h, dn_c = mdr_history(j, slot, w, h_slot, dn_c_slot, r, R, u, inv_R, cp, sp,
+                                              delta_c, r_o, k_e, dn_cap, k)
+            w_c = w[sl] if sl >= 0 else w[0]
+            f_n, f_s, f_t, _, _, state, _, _, _ = mdr_springs(
+                dn, dds, ddt, dn_c, w_c, n_hist, h, R[j], E_star, lam, mu, J, no_write)
+            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, rho, th1, state)
             acc[20] += th
         partial[ic, :] = acc
 
@@ -201,6 +268,7 @@ class Evaluation:
     tangent: np.ndarray
     n_contact: int
     n_slip: int
+    n_partial: int
     mean_theta: float
     n_active: int
 
@@ -229,11 +297,14 @@ class Workspace:
 _EMPTY = np.empty(0)
 
 
-def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None) -> Evaluation:
+def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None,
+             history=None) -> Evaluation:
     """Evaluate Eq. (23) and its tangent over a population at interface displacement delta [m].
 
     Under policy ``birth`` the committed birth angles ``theta_birth`` (NaN where not in
     contact) are used; without them every contact is born now, which equals ``follow``.
+    Law ``mdr`` reads the committed springs of ``history`` (a :class:`~asperity_sim.state.MDRHistory`;
+    default: a virgin interface at Delta = 0) and never changes them.
     """
     d = check_delta(delta)
     check_choice("law", law, LAWS)
@@ -249,8 +320,17 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
     n_active = pop.n_reachable(d, theta_max)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
-    assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
-                   p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, ws.partial)
+    if law == "paper":
+        assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
+                       p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, ws.partial)
+    else:
+        if history is None:
+            from .state import MDRHistory
+
+            history = MDRHistory.virgin(pop, dn_cap=max(d[0], p.beta))
+        hs = history
+        assemble_mdr(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, hs.delta_c,
+                     p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap, ws.partial)
     s = ws.partial[:n_chunks].sum(axis=0)
     return _finish(pop, d, s, n_active)
 
@@ -274,6 +354,7 @@ def _finish(pop, d, s, n_active) -> Evaluation:
         tangent=scale * s[I_T:I_T + 9].reshape(3, 3),
         n_contact=n_contact,
         n_slip=int(round(s[I_NS])),
+        n_partial=int(round(s[I_NP])),
         mean_theta=float(s[I_TH] / n_contact) if n_contact else 0.0,
         n_active=n_active,
     )
