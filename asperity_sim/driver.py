@@ -21,6 +21,8 @@ from .paths import LoadPath
 from .population import SAMPLERS, Population
 from .recorder import Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
+from .state import MDRHistory
+from .variables import HISTORY_VARIABLES, STEP_VARIABLES
 
 
 class SimulationError(RuntimeError):
@@ -46,7 +48,7 @@ def _theta_am(params, closure):
 
 
 def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
-             sampler: str = "random", law: str = "paper", policy: str = "follow", *,
+             sampler: str = "random", law: str = "paper", policy: str = "follow", *, k: int = 16,
              snapshots=None, output=None, settings: SolverSettings | None = None,
              population: Population | None = None, progress=None):
     """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
@@ -57,7 +59,9 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     path : LoadPath
     n : int, number of sampled asperities
     seed : int or None; sampler : "random" or "sobol"
-    law : "paper"; policy : "follow" or "birth" (SPEC §3)
+    law : "paper" (path independent, SPEC §5) or "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
+    policy : "follow" or "birth" (SPEC §3)
+    k : int, tangential springs per contact (law "mdr")
     snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
     output : path of a netCDF file to write (atomically), also when the run fails
     settings : SolverSettings
@@ -91,17 +95,30 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     ws = Workspace(pop.n)
     theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
     length = (params.alpha + 1.0) * params.beta  # mean height: the natural displacement scale
+    history = MDRHistory(pop, k=k, dn_cap=_closure_cap(pop, path, ws)) if law == "mdr" else None
+    if history is not None:
+        attrs["springs_per_contact"] = history.k
 
     def evaluate_at(delta):
-        return evaluate(pop, delta, law=law, policy=policy, theta_birth=theta_birth, workspace=ws)
+        return evaluate(pop, delta, law=law, policy=policy, theta_birth=theta_birth, workspace=ws,
+                        history=history)
+
+    def take_snapshot(step, delta):
+        if history is None:
+            rec.add_snapshot(step, snapshot(pop, delta, policy, theta_birth))
+        else:
+            rec.add_snapshot(step, history.snapshot(delta, theta_birth))
 
     total = sum(s.increments for s in path.stages)
-    rec = Recorder(total + 1)
+    rec = Recorder(total + 1, STEP_VARIABLES if history is None else {**STEP_VARIABLES, **HISTORY_VARIABLES})
     delta = np.zeros(3)
     ev = evaluate_at(delta)
-    _record(rec, params, ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0, cutbacks=0)
+    energy = {"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, "coarsenings": 0,
+              "transitions": np.zeros((4, 4), dtype=np.int64)} if history is not None else {}
+    _record(rec, params, ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0, cutbacks=0,
+            **energy)
     if 0 in snap_steps:
-        rec.add_snapshot(0, snapshot(pop, delta, policy, theta_birth))
+        take_snapshot(0, delta)
     failure = None
     t0 = time.perf_counter()
     try:
@@ -132,15 +149,20 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
                     continue
                 ev = result.evaluation
                 delta = ev.delta.copy()
+                if history is not None:  # commit the springs first: they were evaluated with the old angles
+                    c = history.commit(delta, ev.n_active, theta_birth)
+                    energy = {"external_work": energy["external_work"] + c.work, "elastic_energy": c.stored,
+                              "dissipation": energy["dissipation"] + c.dissipation,
+                              "coarsenings": c.coarsenings, "transitions": c.transitions}
                 if theta_birth is not None:
                     birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, delta,
                                  params.r_o, params.k_e, theta_birth)
                 s = s_new
                 _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
-                        residual=result.residual, cutbacks=cuts)
+                        residual=result.residual, cutbacks=cuts, **energy)
                 step = rec.size - 1
                 if step in snap_steps or (snap_stage_ends and s >= 1.0 - 1e-12):
-                    rec.add_snapshot(step, snapshot(pop, delta, policy, theta_birth))
+                    take_snapshot(step, delta)
                 if progress is not None:
                     progress(i_stage, len(path.stages), s, step, result.iterations)
                 if stage.adaptive:
@@ -186,16 +208,42 @@ def solution_stderr(ev, free):
     return np.sqrt(np.maximum(var_s, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
 
 
-def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks):
+def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, **extra):
     stress_se, disp_se = solution_stderr(ev, control)
     rec.append(
         displacement=ev.delta, stress=ev.stress, stress_stderr=stress_se, displacement_stderr=disp_se,
         tangent=ev.tangent,
-        n_contact=ev.n_contact, n_slip=ev.n_slip,
+        n_contact=ev.n_contact, n_slip=ev.n_slip, n_partial=ev.n_partial,
         theta_am=_theta_am(params, max(0.0, params.r_o + ev.delta[0])), mean_theta=ev.mean_theta,
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
-        cutbacks=cutbacks,
+        cutbacks=cutbacks, **extra,
     )
+
+
+def _closure_cap(pop, path, ws):
+    """Largest closure Delta_1 [m] the path is expected to reach (sets the springs' spacing).
+
+    Displacement-controlled normal targets are read off the path; a normal stress target is
+    converted by bisection on the ``paper`` law at zero shear (the springs coarsen if a
+    contact grows beyond this estimate, so it need not be exact).
+    """
+    cap = pop.params.beta
+    for stage in path.stages:
+        if stage.control[0] == "displacement":
+            cap = max(cap, stage.target[0])
+            continue
+        target = stage.target[0]
+        lo, hi = 0.0, pop.params.beta
+        while evaluate(pop, [hi, 0.0, 0.0], workspace=ws).stress[0] < target and hi < 1e3:
+            lo, hi = hi, 2.0 * hi
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if evaluate(pop, [mid, 0.0, 0.0], workspace=ws).stress[0] < target:
+                lo = mid
+            else:
+                hi = mid
+        cap = max(cap, hi)
+    return cap
 
 
 def _predict(ev, delta, target_delta, target_stress, free):

@@ -18,15 +18,19 @@ PAPER = ("Misra, A. and Huang, S.: Micromechanical stress-displacement model for
          "effect of asperity contact orientation on closure and shear behavior")
 
 
+_SIZES = {"axis": 3, "axis_k": 3, "from_state": 4, "to_state": 4}
+
+
 class Recorder:
     """Growable per-step buffers; ``append`` one converged increment at a time."""
 
-    def __init__(self, capacity: int):
+    def __init__(self, capacity: int, variables=STEP_VARIABLES):
         self.size = 0
         self._buf = {}
+        self._vars = dict(variables)
         self._capacity = max(int(capacity), 1)
-        for name, var in STEP_VARIABLES.items():
-            shape = (self._capacity,) + tuple(3 for _ in var.dims[1:])
+        for name, var in self._vars.items():
+            shape = (self._capacity,) + tuple(_SIZES[d] for d in var.dims[1:])
             self._buf[name] = np.zeros(shape, dtype=var.dtype)
         self.snapshots = []
 
@@ -50,12 +54,15 @@ class Recorder:
     def to_dataset(self, attrs: dict, population=None) -> xr.Dataset:
         n = self.size
         data_vars = {name: (var.dims, self._buf[name][:n].copy(), _attrs(var))
-                     for name, var in STEP_VARIABLES.items()}
+                     for name, var in self._vars.items()}
         coords = {
             "step": ("step", np.arange(n), {"long_name": "converged increment", "units": "1"}),
             "axis": ("axis", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis"])),
             "axis_k": ("axis_k", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis_k"])),
         }
+        if "transitions" in self._vars:
+            for dim in ("from_state", "to_state"):
+                coords[dim] = (dim, np.arange(4, dtype="i4"), _attrs(COORDS[dim]))
         if self.snapshots and population is not None:
             data_vars.update(_snapshot_vars(self.snapshots, population))
         ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)

@@ -76,8 +76,7 @@ def _commit(r, R, u, cos_phi, sin_phi, n_upper, delta, delta_c, r_o, k_e, E_star
                 # contact lost: normal energy returned, spring energy dissipated, memory erased
                 lost = 0.0
                 for i in range(n_hist):
-                    if dn_old - ((i + 0.5) * h) ** 2 * inv_R > 0.0:
-                        lost += 0.5 * q_unit * h * (w[sl, i, 0] ** 2 + w[sl, i, 1] ** 2)
+                    lost += 0.5 * q_unit * h * (w[sl, i, 0] ** 2 + w[sl, i, 1] ** 2)
                     w[sl, i, 0] = 0.0
                     w[sl, i, 1] = 0.0
                 acc[0] += -e_old_n
@@ -111,6 +110,38 @@ def _commit(r, R, u, cos_phi, sin_phi, n_upper, delta, delta_c, r_o, k_e, E_star
                 state_c[sl] = new_state
             acc[4 + 4 * old_state + new_state] += 1.0
         partial[ic, :] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def _snapshot(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, theta_birth, slot, w, h_slot, dn_c,
+              state_c, delta_n_out, theta_out, force_out, state_out):
+    """Per-asperity overlap, angle, global force (committed springs) and state code at the committed delta."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    q_unit = 2.0 * E_star / lam
+    for j in numba.prange(r.size):
+        cp, sp = cos_phi[j], sin_phi[j]
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+        ct, st = math.cos(th), math.sin(th)
+        dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+        delta_n_out[j] = dn
+        theta_out[j] = th
+        sl = slot[j]
+        f_n = f_s = f_t = 0.0
+        code = 0
+        if sl >= 0 and dn_c[sl] > 0.0:
+            f_n = (4.0 / 3.0) * E_star * math.sqrt(R[j]) * dn_c[sl] ** 1.5
+            for i in range(w.shape[1]):
+                f_s += w[sl, i, 0]
+                f_t += w[sl, i, 1]
+            f_s *= q_unit * h_slot[sl]
+            f_t *= q_unit * h_slot[sl]
+            code = state_c[sl]
+        force_out[j, 0] = f_n * ct - f_s * st
+        force_out[j, 1] = f_n * st * cp + f_s * ct * cp - f_t * sp
+        force_out[j, 2] = f_n * st * sp + f_s * ct * sp + f_t * cp
+        state_out[j] = code
 
 
 @dataclass
@@ -157,6 +188,17 @@ class MDRHistory:
         """Bytes held: slot map (n) plus springs, spacing, overlap and state of each slot."""
         per_slot = self.k * 2 * 8 + 8 + 8 + 1
         return self.slot.nbytes + self.n_slots * per_slot
+
+    def snapshot(self, delta, theta_birth=None):
+        """Per-asperity arrays at the committed displacement ``delta`` (call right after commit)."""
+        pop, p = self._pop, self._pop.params
+        tb = theta_birth if theta_birth is not None else np.empty(0)
+        out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
+               "state": np.empty(pop.n, dtype=np.int8)}
+        _snapshot(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, np.asarray(delta, float), p.r_o, p.k_e,
+                  p.E_star, p.lam, tb, self.slot, self.w, self.h, self.dn_c, self.state_c,
+                  out["delta_n"], out["theta"], out["force"], out["state"])
+        return out
 
     def _grow(self, needed):
         cap = self.w.shape[0]

@@ -28,6 +28,7 @@ STEP_VARIABLES = {
     "tangent": Var(("step", "axis", "axis_k"), "f8", "Pa m-1", "tangent stiffness d sigma_axis / d Delta_axis_k"),
     "n_contact": Var(("step",), "i8", "1", "number of sampled asperities in contact"),
     "n_slip": Var(("step",), "i8", "1", "number of sampled asperities in full slip"),
+    "n_partial": Var(("step",), "i8", "1", "number of sampled asperities in partial slip (in contact, sheared, not in full slip)"),
     "theta_am": Var(("step",), "f8", "rad", "average asperity orientation extent theta_am (Eq. 29)"),
     "mean_theta": Var(("step",), "f8", "rad", "mean meridional orientation theta of the asperities in contact"),
     "stage": Var(("step",), "i4", "1", "stage of the load path (0: initial state)"),
@@ -35,6 +36,17 @@ STEP_VARIABLES = {
     "iterations": Var(("step",), "i4", "1", "Newton iterations of the increment"),
     "residual": Var(("step",), "f8", "1", "final scaled residual max|sigma_f - target_f| / stress scale"),
     "cutbacks": Var(("step",), "i4", "1", "increment halvings before convergence"),
+}
+
+HISTORY_VARIABLES = {  # recorded for history laws only
+    "external_work": Var(("step",), "f8", "J m-2",
+                         "cumulative external work on the asperity contacts per unit nominal area"),
+    "elastic_energy": Var(("step",), "f8", "J m-2",
+                          "elastic energy stored in the contacts (Hertz and tangential springs) per unit nominal area"),
+    "dissipation": Var(("step",), "f8", "J m-2", "cumulative frictional dissipation per unit nominal area"),
+    "coarsenings": Var(("step",), "i8", "1", "contacts whose springs were coarsened in the increment"),
+    "transitions": Var(("step", "from_state", "to_state"), "i8", "1",
+                       "asperities changing contact state in the increment (0 out, 1 stick, 2 partial slip, 3 full slip)"),
 }
 
 ASPERITY_VARIABLES = {
@@ -54,8 +66,10 @@ SNAPSHOT_VARIABLES = {
 }
 
 COORDS = {
+    "from_state": Var(("from_state",), "i4", "1", "contact state before the increment (0 out, 1 stick, 2 partial, 3 full slip)"),
+    "to_state": Var(("to_state",), "i4", "1", "contact state after the increment (0 out, 1 stick, 2 partial, 3 full slip)"),
     "axis": Var(("axis",), "i4", "1", "component: 1 normal (closure), 2 and 3 shear"),
     "axis_k": Var(("axis_k",), "i4", "1", "displacement component of the tangent"),
 }
 
-ALL_VARIABLES = {**STEP_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
+ALL_VARIABLES = {**STEP_VARIABLES, **HISTORY_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}

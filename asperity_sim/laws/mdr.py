@@ -20,12 +20,13 @@ committed delta_n) is read, never written, except by :func:`mdr_springs` in comm
 which writes the new springs into a caller-owned scratch array.
 
 Energy of one increment, per spring (q = 2 E* h / lam):
-stored ½ q |w|²; work q ½(w^c + w).dδ_i while it sticks (exact for a linear spring),
-q w.dδ_i when it slips (end-point rule of the radial return), where dδ_i is the
-displacement it took while in contact; dissipation = work - change of stored energy,
-which equals q w.p + ½ q |w - w^c|² >= 0 for a slipping spring (p: slip) and 0 for a
-sticking one.  A spring that leaves contact slid to zero as its limit vanished: its
-stored energy is dissipated.
+stored ½ q |w|²; work q ½(w^c + w).dδ_i while it sticks (exact for a linear spring: the
+change of its energy), q w.dδ_i when it slips (end-point rule of the radial return), where
+dδ_i is the displacement it took while in contact; dissipation q w.p + ½ q |w - w^c|² >= 0
+for a slipping spring (p: its slip), 0 for a sticking one.  Work = change of stored
+energy + dissipation then holds per spring (to round-off), and dissipation never
+decreases.  A spring that leaves contact slid to zero as its limit vanished: its stored
+energy is dissipated.
 """
 
 from __future__ import annotations
@@ -78,7 +79,9 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
         if u <= 0.0:
             break
         u_c = dn_c - x2
-        if u_c > 0.0 and i < n_hist:  # continuing spring: committed vector plus the increment
+        # continuing spring: committed vector plus the increment.  A spring with memory but
+        # u_c <= 0 exists only after coarsening (merged across the contact edge): it keeps it.
+        if i < n_hist and (u_c > 0.0 or w_c[i, 0] != 0.0 or w_c[i, 1] != 0.0):
             wcs, wct = w_c[i, 0], w_c[i, 1]
             a = 1.0
             bs = bt = 0.0
@@ -127,23 +130,23 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
                 w_out[i, 1] = wt
             # displacement this spring took while in contact: a (dds, ddt)
             dis, dit = a * dds, a * ddt
-            if slipping:
-                wk = q * (ws * dis + wt * dit)
-            else:
-                wk = 0.5 * q * ((wcs + ws) * dis + (wct + wt) * dit)
             de = 0.5 * q * (ws * ws + wt * wt - wcs * wcs - wct * wct)
+            if slipping:  # end-point work; dissipation q w.p + ½ q |w - w_c|² >= 0, p the slip
+                wk = q * (ws * dis + wt * dit)
+                ps, pt = wcs + dis - ws, wct + dit - wt
+                dissipation += q * (ws * ps + wt * pt) + 0.5 * q * ((ws - wcs) ** 2 + (wt - wct) ** 2)
+            else:  # a linear spring: its work is its change of energy
+                wk = de
             work += wk
             stored_change += de
-            dissipation += wk - de
         n_springs += 1
         i += 1
     if write:
-        # springs with history that left contact: their stored energy is dissipated
+        # springs with memory that left contact slid to zero: their stored energy is dissipated
         for jj in range(i, n_hist):
-            if dn_c - ((jj + 0.5) * h) ** 2 * inv_R > 0.0:
-                e0 = 0.5 * q * (w_c[jj, 0] ** 2 + w_c[jj, 1] ** 2)
-                stored_change -= e0
-                dissipation += e0
+            e0 = 0.5 * q * (w_c[jj, 0] ** 2 + w_c[jj, 1] ** 2)
+            stored_change -= e0
+            dissipation += e0
         for jj in range(i, w_out.shape[0]):
             w_out[jj, 0] = 0.0
             w_out[jj, 1] = 0.0
