@@ -11,8 +11,10 @@ from .params import InterfaceParams
 from .population import Population
 from .driver import ConvergenceError, SimulationError, StressNotReachableError, simulate
 from .solver import SolverSettings
+from .single import single_contact
 
 __all__ = [
-    "InterfaceParams", "presets", "Population", "paths", "simulate", "reference", "SolverSettings",
+    "InterfaceParams", "presets", "Population", "paths", "simulate", "single_contact", "reference",
+    "SolverSettings",
     "SimulationError", "StressNotReachableError", "ConvergenceError", "__version__",
 ]

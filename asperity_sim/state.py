@@ -25,7 +25,7 @@ import numba
 import numpy as np
 
 from .assemble import CHUNK, closure_and_slope, contact_angle, local_displacement, mdr_history
-from .laws.mdr import hertz_energy, merge_pairs, mdr_springs
+from .laws.mdr import hertz_energy, mdr_springs, merge_pairs, release_springs
 
 # per-chunk commit sums: work, stored energy (absolute), dissipation, coarsenings, transitions (4x4)
 N_COMMIT = 4 + 16
@@ -73,14 +73,14 @@ def _commit(r, R, u, cos_phi, sin_phi, n_upper, delta, delta_c, r_o, k_e, E_star
             old_state = state_c[sl] if dn_old > 0.0 else 0
             e_old_n = hertz_energy(dn_old, R[j], E_star)
             if dn <= 0.0:
-                # contact lost: normal energy returned, spring energy dissipated, memory erased
-                lost = 0.0
+                # contact lost: normal energy returned, springs released, memory erased
+                _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+                wk, _, dd = release_springs(w[sl], 0, n_hist, dn, dn_old, h, inv_R, dds, ddt, q_unit * h)
                 for i in range(n_hist):
-                    lost += 0.5 * q_unit * h * (w[sl, i, 0] ** 2 + w[sl, i, 1] ** 2)
                     w[sl, i, 0] = 0.0
                     w[sl, i, 1] = 0.0
-                acc[0] += -e_old_n
-                acc[2] += lost
+                acc[0] += wk - e_old_n
+                acc[2] += dd
                 dn_c[sl] = dn
                 state_c[sl] = 0
                 new_state = 0

@@ -25,8 +25,8 @@ change of its energy), q w.dδ_i when it slips (end-point rule of the radial ret
 dδ_i is the displacement it took while in contact; dissipation q w.p + ½ q |w - w^c|² >= 0
 for a slipping spring (p: its slip), 0 for a sticking one.  Work = change of stored
 energy + dissipation then holds per spring (to round-off), and dissipation never
-decreases.  A spring that leaves contact slid to zero as its limit vanished: its stored
-energy is dissipated.
+decreases.  A spring that leaves contact follows the increment elastically until its exit
+and then slides to zero as its limit vanishes (:func:`release_springs`).
 """
 
 from __future__ import annotations
@@ -142,11 +142,10 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
         n_springs += 1
         i += 1
     if write:
-        # springs with memory that left contact slid to zero: their stored energy is dissipated
-        for jj in range(i, n_hist):
-            e0 = 0.5 * q * (w_c[jj, 0] ** 2 + w_c[jj, 1] ** 2)
-            stored_change -= e0
-            dissipation += e0
+        wk, de, dd = release_springs(w_c, i, n_hist, dn, dn_c, h, inv_R, dds, ddt, q)
+        work += wk
+        stored_change += de
+        dissipation += dd
         for jj in range(i, w_out.shape[0]):
             w_out[jj, 0] = 0.0
             w_out[jj, 1] = 0.0
@@ -161,6 +160,29 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
     else:
         state = PARTIAL
     return f_n, q * Fs, q * Ft, n_springs, n_slip, state, work, stored_change, dissipation
+
+
+@numba.njit(cache=True, inline="always")
+def release_springs(w_c, start, n_hist, dn, dn_c, h, inv_R, dds, ddt, q):
+    """Work, change of stored energy and dissipation of springs start..n_hist-1 leaving contact.
+
+    A spring in contact for the first fraction f = u^c/(u^c - u) of the increment follows
+    it elastically to w* = w^c + f dδ (work ½ q (w^c + w*).f dδ); as its limit vanishes at
+    the exit it slides to zero, dissipating ½ q |w*|².  Under proportional unloading w* = 0.
+    """
+    work = stored_change = dissipation = 0.0
+    for jj in range(start, n_hist):
+        wcs, wct = w_c[jj, 0], w_c[jj, 1]
+        if wcs == 0.0 and wct == 0.0:
+            continue
+        x2 = ((jj + 0.5) * h) ** 2 * inv_R
+        u_c, u = dn_c - x2, dn - x2
+        f = u_c / (u_c - u) if u_c > 0.0 and u < u_c else 0.0
+        es, et = wcs + f * dds, wct + f * ddt
+        work += 0.5 * q * ((wcs + es) * f * dds + (wct + et) * f * ddt)
+        stored_change -= 0.5 * q * (wcs * wcs + wct * wct)
+        dissipation += 0.5 * q * (es * es + et * et)
+    return work, stored_change, dissipation
 
 
 @numba.njit(cache=True)
