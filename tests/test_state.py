@@ -1,0 +1,159 @@
+"""Interface-level history (law `mdr`): trial vs committed, exact tangent, energy, population checks."""
+
+import math
+
+import numpy as np
+import pytest
+
+from asperity_sim import Population, paths, presets, reference, simulate
+from asperity_sim.assemble import evaluate
+from asperity_sim.state import MDRHistory
+
+um = 1e-6
+R1, S1 = presets.R1, presets.S1
+
+
+def loaded_history(params=R1, n=3000, seed=1, k=16):
+    """A history built by committing a short mixed path (normal, shear, turn, partial unloading)."""
+    pop = Population.sample(params, n, seed=seed)
+    hist = MDRHistory(pop, k=k, dn_cap=15 * um)
+    steps = ([np.array([x, 0, 0]) for x in np.linspace(0, 15, 6)[1:] * um]
+             + [np.array([15, y, 0.4 * y]) * um for y in np.linspace(0, 5, 6)[1:]]
+             + [np.array([14, 5 - z, 2 + z]) * um for z in np.linspace(0, 3, 4)[1:]])
+    for d in steps:
+        ev = evaluate(pop, d, law="mdr", history=hist)
+        hist.commit(d, ev.n_active)
+    return pop, hist
+
+
+def test_trial_evaluation_never_changes_committed_history():
+    pop, hist = loaded_history()
+    before = {name: getattr(hist, name).copy() for name in ("slot", "w", "h", "dn_c", "state_c", "delta_c")}
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        d = hist.delta_c + rng.normal(0, 2, 3) * um
+        evaluate(pop, d, law="mdr", history=hist)
+    for name, a in before.items():
+        assert np.array_equal(getattr(hist, name), a), name
+
+
+@pytest.mark.parametrize("trial_um", [(14.3, 3.5, 2.5), (13, 5, 3.1), (15, 6, 3), (12, 1, 6)])
+def test_mdr_tangent_against_finite_differences(trial_um):
+    pop, hist = loaded_history()
+    d = np.array(trial_um) * um
+    ev = evaluate(pop, d, law="mdr", history=hist)
+    assert ev.n_contact > 0
+    T_fd = np.empty((3, 3))
+    h = 1e-7 * um
+    for k in range(3):
+        dp, dm = d.copy(), d.copy()
+        dp[k] += h
+        dm[k] -= h
+        T_fd[:, k] = (evaluate(pop, dp, law="mdr", history=hist).stress
+                      - evaluate(pop, dm, law="mdr", history=hist).stress) / (2 * h)
+    assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
+
+
+def test_mdr_taylor_remainder_orders():
+    pop, hist = loaded_history()
+    d = hist.delta_c + np.array([0.3, -0.4, 0.5]) * um
+    direction = np.array([0.5, -0.6, 0.4]) * um
+    ev = evaluate(pop, d, law="mdr", history=hist)
+    hs = np.array([0.1, 0.05, 0.025, 0.0125, 0.00625])
+    r0, r1 = [], []
+    for h in hs:
+        s = evaluate(pop, d + h * direction, law="mdr", history=hist).stress
+        r0.append(np.linalg.norm(s - ev.stress))
+        r1.append(np.linalg.norm(s - ev.stress - h * ev.tangent @ direction))
+    assert np.polyfit(np.log(hs), np.log(r0), 1)[0] == pytest.approx(1.0, abs=0.1)
+    assert np.polyfit(np.log(hs), np.log(r1), 1)[0] == pytest.approx(2.0, abs=0.3)
+
+
+def cyclic_path(sigma_n, amp, cycles=2, inc=8):
+    S, D = paths.STRESS, paths.DISPLACEMENT
+    stages = [paths.Stage((S, D, D), (sigma_n, 0, 0), inc, name="normal")]
+    for _ in range(cycles):
+        stages += [paths.Stage((S, D, D), (sigma_n, amp, 0), inc), paths.Stage((S, D, D), (sigma_n, -amp, 0), 2 * inc),
+                   paths.Stage((S, D, D), (sigma_n, 0, 0), inc)]
+    return paths.LoadPath(tuple(stages), name="cyclic")
+
+
+def random_path(seed, stages=8):
+    rng = np.random.default_rng(seed)
+    D = paths.DISPLACEMENT
+    out = [paths.Stage((D, D, D), (12 * um, 0, 0), 6)]
+    for _ in range(stages):
+        target = (rng.uniform(6, 16) * um, rng.uniform(-4, 4) * um, rng.uniform(-4, 4) * um)
+        out.append(paths.Stage((D, D, D), target, 5))
+    return paths.LoadPath(tuple(out), name="random")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", [cyclic_path(300e6, 3 * um), random_path(1), random_path(2)], ids=["cyclic", "random1", "random2"])
+def test_energy_balance_closes_and_dissipation_never_decreases(path):
+    ds = simulate(R1, path, n=5000, seed=3, law="mdr", k=16)
+    W, E, D = ds.external_work.values, ds.elastic_energy.values, ds.dissipation.values
+    assert np.abs(W - E - D).max() <= 1e-10 * np.abs(W).max()
+    assert np.all(np.diff(D) >= 0.0)
+    assert D[-1] > 0.0
+    counts = ds.n_contact.values
+    assert np.all(ds.n_slip.values + ds.n_partial.values <= counts)
+    # transitions: every contact counted once, consistent with the recorded counts
+    tr = ds.transitions.values
+    assert np.array_equal(tr[1:, 1:, :].sum(axis=(1, 2)), counts[:-1])  # from: contacts before
+    assert np.array_equal(tr[1:, :, 1:].sum(axis=(1, 2)), counts[1:])  # to: contacts after
+    assert np.array_equal(tr[1:, :, 3].sum(axis=1), ds.n_slip.values[1:])
+    assert np.array_equal(tr[1:, :, 2].sum(axis=1), ds.n_partial.values[1:])
+
+
+def test_contact_loss_erases_memory():
+    pop, hist = loaded_history()
+    d = np.array([-1.0, 0.0, 0.0]) * um  # opening: every contact lost
+    ev = evaluate(pop, d, law="mdr", history=hist)
+    assert ev.n_contact == 0
+    c = hist.commit(d, ev.n_active)
+    assert c.stored == 0.0
+    assert np.all(hist.w == 0.0) and np.all(hist.dn_c[: hist.n_slots] <= 0.0)
+    # reloading: identical to a virgin interface loaded the same way
+    d2 = np.array([10, 1, 0]) * um
+    a = evaluate(pop, d2, law="mdr", history=hist)
+    virgin = MDRHistory(pop, k=hist.k, dn_cap=hist.dn_cap)
+    virgin.delta_c = d.copy()
+    b = evaluate(pop, d2, law="mdr", history=virgin)
+    assert np.allclose(a.stress, b.stress, rtol=1e-12)
+
+
+@pytest.mark.statistical
+def test_flat_on_rough_shear_follows_ciavarella_jaeger_and_masing():
+    """e = 0: sigma_2 = mu [sigma_1(D) - sigma_1(D - Delta_2/(lam mu))] on loading, Masing 2 mu [...] on unloading."""
+    params = R1.replace(e=0.0)
+    D1, top = 20 * um, 4 * um
+    lm = params.lam * params.mu
+    D = paths.DISPLACEMENT
+    path = paths.LoadPath((paths.Stage((D, D, D), (D1, 0, 0), 10), paths.Stage((D, D, D), (D1, top, 0), 20),
+                           paths.Stage((D, D, D), (D1, -top, 0), 40)), name="flat")
+    pop = Population.sample(params, 100_000, seed=9)
+    ds = simulate(params, path, population=pop, law="mdr", k=32)
+    d2 = ds.displacement.sel(axis=2).values
+    s2, se2 = ds.stress.sel(axis=2).values, ds.stress_stderr.sel(axis=2).values
+    load = slice(11, 31)
+    unload = slice(31, None)
+
+    def sigma1_pop(x):  # the same population's Hertz closure (the identity holds asperity by asperity)
+        return evaluate(pop, [x, 0.0, 0.0]).stress[0]
+
+    def sigma1_ref(x):
+        return reference.sigma_1_gw(params, x) if x > 0 else 0.0
+
+    for sigma1, tol in ((sigma1_pop, None), (sigma1_ref, "stat")):
+        s_top = params.mu * (sigma1(D1) - sigma1(D1 - top / lm))
+        exp_load = np.array([params.mu * (sigma1(D1) - sigma1(D1 - x / lm)) for x in d2[load]])
+        exp_unload = np.array([s_top - 2 * params.mu * (sigma1(D1) - sigma1(D1 - (top - x) / (2 * lm)))
+                               for x in d2[unload]])
+        got = np.r_[s2[load], s2[unload]]
+        exp = np.r_[exp_load, exp_unload]
+        if tol is None:  # spring discretisation only (k = 32)
+            assert np.abs(got - exp).max() < 1e-3 * params.mu * sigma1(D1)
+        else:
+            se = np.r_[se2[load], se2[unload]]
+            assert np.all(np.abs(got - exp) < 4 * se + 1e-3 * params.mu * sigma1(D1))
