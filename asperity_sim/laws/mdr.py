@@ -97,8 +97,8 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
         ws = wcs + a * dds
         wt = wct + a * ddt
         limit = lm * u
-        m = math.sqrt(ws * ws + wt * wt)
-        slipping = m > limit
+        m2 = ws * ws + wt * wt
+        slipping = m2 > limit * limit
         if not slipping:
             Fs += ws
             Ft += wt
@@ -108,6 +108,7 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
             J22 += a
         else:
             n_slip += 1
+            m = math.sqrt(m2)
             if m > 0.0:
                 es, et = ws / m, wt / m
             else:
