@@ -160,3 +160,83 @@ def plot_run(ds):
     fig.suptitle(ds.attrs.get("title", "asperity_sim run"))
     fig.tight_layout()
     return fig
+
+
+def plot_cyclic_shear(runs: dict):
+    """Hysteresis loops (sigma_2 against Delta_2) and loop dissipation against amplitude (log-log)."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
+    for (name, ds), color in zip(runs.items(), ("tab:red", "tab:blue", "tab:green", "tab:orange")):
+        sh = shear_stage(ds)
+        a1.plot(sh["displacement"].sel(axis=2).values * UM, sh["stress"].sel(axis=2).values * MPA, color=color,
+                lw=0.9, label=name)
+        amp, W = ds["loop_amplitude"].values, ds["loop_dissipation"].values
+        a2.loglog(amp * UM, W, "o-", color=color, label=name)
+    a = ds["loop_amplitude"].values * UM
+    ref = W[0] * (a / a[0]) ** 3
+    a2.loglog(a, ref, "k:", lw=0.9, label=r"$\propto A^3$")
+    a1.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
+    a1.set_ylabel(r"shear stress $\sigma_2$ [MPa]")
+    a1.set_title("hysteresis loops at constant normal stress (law mdr)")
+    a1.legend(fontsize=8)
+    a2.set_xlabel(r"cycle amplitude $A$ [µm]")
+    a2.set_ylabel(r"dissipation per cycle [J m$^{-2}$]")
+    a2.set_title("energy dissipated per stable cycle")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_rotating_shear(runs: dict, turn_deg):
+    """Shear stress path in the (sigma_2, sigma_3) plane and non-coaxiality after the turn."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.6))
+    colors = {"R1": "tab:red", "S1": "tab:blue"}
+    for (name, law), ds in runs.items():
+        style = "-" if law == "mdr" else "--"
+        tau = ds["stress"].sel(axis=[2, 3]).values * MPA
+        a1.plot(tau[:, 0], tau[:, 1], style, color=colors.get(name, "k"), label=f"{name}, {law}")
+        turned = ds["stage"].values == ds["stage"].values.max()
+        d2 = ds["displacement"].sel(axis=[2, 3]).values
+        start = d2[np.flatnonzero(turned)[0] - 1]
+        travelled = np.linalg.norm(d2[turned] - start, axis=1) * UM
+        a2.plot(travelled, np.degrees(ds["non_coaxiality"].values[turned]), style, color=colors.get(name, "k"),
+                label=f"{name}, {law}")
+    a1.set_xlabel(r"$\sigma_2$ [MPa]")
+    a1.set_ylabel(r"$\sigma_3$ [MPa]")
+    a1.set_aspect("equal", adjustable="datalim")
+    a1.set_title(f"shear stress path (shear turns by {turn_deg:g}°)")
+    a1.legend(fontsize=8)
+    a2.set_xlabel("shear displacement after the turn [µm]")
+    a2.set_ylabel("angle between shear stress and displacement increment [deg]")
+    a2.set_title("non-coaxiality")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_history_vs_paper(runs: dict):
+    """Fig. 13 curves with the `paper` and the `mdr` law, and their difference."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
+    colors = {"R1": "tab:red", "S1": "tab:blue"}
+    names = sorted({name for name, _ in runs})
+    for name in names:
+        curves = {}
+        for law in ("paper", "mdr"):
+            sh = shear_stage(runs[(name, law)])
+            d2 = sh["displacement"].sel(axis=2).values * UM
+            ratio = sh["stress"].sel(axis=2).values / sh["stress"].sel(axis=1).values
+            se = sh["stress_stderr"].sel(axis=2).values / sh["stress"].sel(axis=1).values
+            curves[law] = (d2, ratio, se)
+            a1.plot(d2, ratio, "-" if law == "mdr" else "--", color=colors.get(name, "k"), label=f"{name}, {law}")
+        d2, rm, se = curves["mdr"]
+        _band(a2, d2, rm - curves["paper"][1], se, colors.get(name, "k"), label=f"{name}: mdr - paper")
+    a1.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
+    a1.set_ylabel(r"shear resistance $\sigma_2/\sigma_1$ [1]")
+    a1.set_title("Fig. 13 path: history law against the paper's law")
+    a1.legend(fontsize=8)
+    a2.axhline(0.0, color="0.6", lw=0.8)
+    a2.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
+    a2.set_ylabel("difference of shear resistance [1] (band: ±2 s.e. of one curve)")
+    a2.set_title("history effect")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
