@@ -10,6 +10,7 @@ file was asked for).
 from __future__ import annotations
 
 import numbers
+import os
 import time
 
 import numpy as np
@@ -79,7 +80,13 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     check_choice("law", law, LAWS)
     check_choice("policy", policy, POLICIES)
     check_choice("sampler", sampler, SAMPLERS)
-    settings = settings or SolverSettings()
+    settings = SolverSettings() if settings is None else settings
+    if not isinstance(settings, SolverSettings):
+        raise ValueError(f"settings = {settings!r} is not a SolverSettings")
+    if population is not None and not isinstance(population, Population):
+        raise ValueError(f"population = {population!r} is not a Population")
+    if output is not None and not isinstance(output, (str, os.PathLike)):
+        raise ValueError(f"output = {output!r} is not a file path")
     snap_steps, snap_stage_ends = _check_snapshots(snapshots)
     if progress is not None and not callable(progress):
         raise ValueError(f"progress = {progress!r} must be callable or None")
@@ -120,13 +127,16 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     if 0 in snap_steps:
         take_snapshot(0, delta)
     failure = None
+    interrupted = None
     t0 = time.perf_counter()
     try:
         for i_stage, stage in enumerate(path.stages, 1):
             free = stage.stress_controlled
             start_delta, start_stress = delta.copy(), ev.stress.copy()
             end = np.asarray(stage.target, dtype=float)
+            k_start = None  # stiffness of the ramped stress directions after the first increment
             nominal = 1.0 / stage.increments
+            smallest = nominal * 0.5 ** settings.max_cutbacks
             s, ds, cuts = 0.0, nominal, 0
             while s < 1.0 - 1e-12:
                 ds = min(ds, 1.0 - s)
@@ -137,13 +147,9 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
                 result = solve_increment(evaluate_at, guess, free, target_stress, length, settings)
                 if not result.converged:
                     cuts += 1
-                    if result.unreachable or cuts > settings.max_cutbacks:
-                        kind = StressNotReachableError if result.unreachable else ConvergenceError
-                        if not result.unreachable and free.any() and _saturated(ev, free):
-                            kind = StressNotReachableError
-                        failure = kind(
-                            f"stage {i_stage} ({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage "
-                            f"after {cuts - 1} cut-backs: {result.message}")
+                    if result.unreachable or cuts > settings.max_cutbacks or ds * 0.5 < smallest:
+                        failure = _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage, s,
+                                           cuts, k_start)
                         raise failure
                     ds *= 0.5
                     continue
@@ -158,6 +164,8 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
                     birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, delta,
                                  params.r_o, params.k_e, theta_birth)
                 s = s_new
+                if k_start is None and free.any():
+                    k_start = effective_stiffness(ev, free, _ramped(free, start_stress, end))
                 _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
                         residual=result.residual, cutbacks=cuts, **energy)
                 step = rec.size - 1
@@ -172,9 +180,17 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
                 else:
                     ds = min(2.0 * ds, nominal) if cuts else nominal
                 cuts = 0
+    except BaseException as err:  # noqa: B036 - recorded, then re-raised
+        interrupted = err
+        raise
     finally:
         attrs["wall_time_s"] = time.perf_counter() - t0
-        attrs["status"] = "complete" if failure is None else f"failed: {failure}"
+        if failure is not None:
+            attrs["status"] = f"failed: {failure}"
+        elif interrupted is not None:
+            attrs["status"] = f"interrupted: {type(interrupted).__name__}: {interrupted}"
+        else:
+            attrs["status"] = "complete"
         ds_out = rec.to_dataset(attrs, population=pop)
         if output is not None:
             from .io import write_netcdf
@@ -262,6 +278,51 @@ def _predict(ev, delta, target_delta, target_stress, free):
     except np.linalg.LinAlgError:
         pass
     return guess
+
+
+def _ramped(free, start_stress, end):
+    """Stress-controlled components whose target changes over the stage (all of them if none does)."""
+    moving = [k for k in np.flatnonzero(free)
+              if abs(end[k] - start_stress[k]) > 1e-6 * max(abs(end[k]), abs(start_stress[k]))]
+    return moving or list(np.flatnonzero(free))
+
+
+def effective_stiffness(ev, free, ramped):
+    """Stiffness [Pa/m] of the ramped stress components with the other stress-controlled ones held.
+
+    The inverse of the ramped block of the compliance T_ff^-1; 0 where T_ff is singular.
+    """
+    idx = np.flatnonzero(free)
+    pos = [int(np.flatnonzero(idx == k)[0]) for k in ramped]
+    try:
+        C = np.linalg.inv(ev.tangent[np.ix_(idx, idx)])
+        K = np.linalg.inv(C[np.ix_(pos, pos)])
+    except np.linalg.LinAlgError:
+        return 0.0
+    return float(np.min(np.linalg.eigvalsh(0.5 * (K + K.T))))
+
+
+def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage, s, cuts, k_start=None):
+    """The named exception for an increment that cannot be completed.
+
+    A prescribed stress is declared unreachable when the solver saw it saturate, or when the
+    stiffness of the interface in the ramped stress directions (the others held) has fallen
+    below 2 % of its value at the start of the stage: the target lies beyond a peak or a plateau.
+    """
+    where = f"stage {i_stage} ({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage after {cuts - 1} cut-backs"
+    if not free.any():
+        return ConvergenceError(f"{where}: {result.message}")
+    ramped = _ramped(free, start_stress, end)
+    names = ", ".join(f"sigma_{k + 1} = {target_stress[k]:.6g} Pa" for k in ramped)
+    reached = ", ".join(f"sigma_{k + 1} = {ev.stress[k]:.6g} Pa" for k in ramped)
+    k_now = effective_stiffness(ev, free, ramped)
+    softened = k_start is not None and k_start > 0 and k_now < 0.02 * k_start
+    if result.unreachable or softened or _saturated(ev, free):
+        return StressNotReachableError(
+            f"{names} cannot be reached: {where}; the interface carried at most {reached} "
+            f"(at Delta = {np.array2string(ev.delta, precision=4)} m) and its stiffness in the stress-controlled "
+            f"directions is exhausted ({result.message})")
+    return ConvergenceError(f"{names} not reached: {where}; last converged {reached} ({result.message})")
 
 
 def _saturated(ev, free):

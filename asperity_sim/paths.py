@@ -22,6 +22,16 @@ STRESS = "stress"
 _ALIASES = {"displacement": DISPLACEMENT, "d": DISPLACEMENT, "stress": STRESS, "s": STRESS}
 
 
+def _as_tuple(value):
+    """tuple(value) for a non-string iterable, else None."""
+    if isinstance(value, (str, bytes)):
+        return None
+    try:
+        return tuple(value)
+    except TypeError:
+        return None
+
+
 def _check_int(name, value, lo, hi):
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= value <= hi:
         raise ValueError(f"{name} = {value!r} is not valid (valid range: integer in [{lo}, {hi}])")
@@ -51,7 +61,7 @@ class Stage:
     name: str = ""
 
     def __post_init__(self):
-        control = tuple(self.control) if not isinstance(self.control, str) else None
+        control = _as_tuple(self.control)
         if control is None or len(control) != 3:
             raise ValueError(f"control = {self.control!r} must name 3 components, each 'displacement' or 'stress'")
         mapped = []
@@ -60,8 +70,8 @@ class Stage:
                 raise ValueError(f"control[{k}] = {c!r} is not known (valid: 'displacement'/'d', 'stress'/'s')")
             mapped.append(_ALIASES[c])
         object.__setattr__(self, "control", tuple(mapped))
-        target = tuple(self.target) if not isinstance(self.target, str) else ()
-        if len(target) != 3:
+        target = _as_tuple(self.target)
+        if target is None or len(target) != 3:
             raise ValueError(f"target = {self.target!r} must have 3 components ([m] or [Pa])")
         units = {DISPLACEMENT: "m", STRESS: "Pa"}
         object.__setattr__(self, "target", tuple(
@@ -88,7 +98,7 @@ class LoadPath:
     name: str = "custom"
 
     def __post_init__(self):
-        stages = tuple(self.stages)
+        stages = _as_tuple(self.stages)
         if not stages or not all(isinstance(s, Stage) for s in stages):
             raise ValueError(f"stages = {self.stages!r} must be a non-empty sequence of Stage")
         object.__setattr__(self, "stages", stages)

@@ -294,7 +294,7 @@ def radius_rule(params: InterfaceParams, closure: float = 0.0, n: int = 20):
     cuts.sort()
     xs, ws = [], []
     for a, b in zip(cuts[:-1], cuts[1:]):
-        m = max(4, int(math.ceil(n * (b - a) / (hi - lo))))
+        m = max((n + 1) // 2, int(math.ceil(n * (b - a) / (hi - lo))))
         t, w = _gauss_legendre01(m)
         if a == 0.0:
             x = a + (b - a) * t * t

@@ -20,6 +20,7 @@ Safeguards:
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +53,7 @@ class SolverSettings:
         check_real("max_step", self.max_step, 0.0, None, lo_open=True)
         for name, lo in (("max_iter", 1), ("max_expansions", 1), ("max_cutbacks", 0)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lo:
                 raise ValueError(f"{name} = {v!r} is not valid (valid range: integer >= {lo})")
 
 
@@ -69,8 +70,9 @@ class SolveResult:
     unreachable: bool = False
 
 
-def _scaled_residual(ev, free, target, settings):
-    scale = max(np.max(np.abs(target[free]), initial=0.0), np.max(np.abs(ev.stress)), settings.sigma_floor)
+def _scaled_residual(ev, free, target, settings, scale=None):
+    if scale is None:
+        scale = max(np.max(np.abs(target[free]), initial=0.0), np.max(np.abs(ev.stress)), settings.sigma_floor)
     r = (ev.stress[free] - target[free]) / scale
     return r, scale
 
@@ -93,7 +95,18 @@ def solve_increment(evaluate, delta_guess, free, target, length_scale, settings=
         return SolveResult(True, 0, 0.0, 0.0, "displacement controlled", ev)
     if free.sum() == 1:
         return _solve_scalar(evaluate, x, ev, int(np.flatnonzero(free)[0]), free, target, length_scale, settings)
-    return _solve_newton(evaluate, x, ev, free, target, length_scale, settings)
+    result = _solve_newton(evaluate, x, ev, free, target, length_scale, settings)
+    if result.converged or not free[0]:
+        return result
+    # first contact under several stress controls: find sigma_1 alone (bracketed), then all together
+    only_1 = np.array([True, False, False])
+    first = _solve_scalar(evaluate, x.copy(), ev, 0, only_1, target, length_scale, settings)
+    if not first.converged:
+        return result
+    again = _solve_newton(evaluate, first.evaluation.delta.copy(), first.evaluation, free, target, length_scale,
+                          settings)
+    again.iterations += result.iterations + first.iterations
+    return again
 
 
 def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
@@ -154,7 +167,7 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
 def _solve_newton(evaluate, x, ev, free, target, L, settings):
     """Damped Newton with least-squares steps for several stress-controlled components."""
     idx = np.flatnonzero(free)
-    r, scale = _scaled_residual(ev, free, target, settings)
+    r, scale = _scaled_residual(ev, free, target, settings)  # the scale stays fixed for this solve
     norm = float(np.max(np.abs(r)))
     rate, slow = 0.0, 0
     search = np.full(idx.size, L / 64.0)
@@ -179,7 +192,7 @@ def _solve_newton(evaluate, x, ev, free, target, L, settings):
             x_try = x.copy()
             x_try[idx] += lam * step * L
             ev_try = evaluate(x_try)
-            r_try, scale_try = _scaled_residual(ev_try, free, target, settings)
+            r_try, _ = _scaled_residual(ev_try, free, target, settings, scale)
             norm_try = float(np.max(np.abs(r_try)))
             if np.all(np.isfinite(r_try)) and (norm_try < (1.0 - 1e-4 * lam) * norm or dead.any()):
                 break
@@ -189,7 +202,7 @@ def _solve_newton(evaluate, x, ev, free, target, L, settings):
                                f"line search failed on sigma_{[int(i) + 1 for i in idx]} (residual {norm:.3g})", ev)
         rate = norm_try / norm if norm > 0 else 0.0
         slow = slow + 1 if rate > 0.9 else 0
-        x, ev, r, scale, norm = x_try, ev_try, r_try, scale_try, norm_try
+        x, ev, r, norm = x_try, ev_try, r_try, norm_try
         if slow >= 4:
             return SolveResult(False, it, norm, rate, f"Newton stopped contracting (rate {rate:.3g})", ev)
     return SolveResult(norm <= settings.rtol, settings.max_iter, norm, rate,

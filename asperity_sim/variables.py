@@ -62,7 +62,7 @@ SNAPSHOT_VARIABLES = {
     "asperity_theta": Var(("snapshot", "asperity"), "f8", "rad", "meridional orientation theta of each asperity"),
     "asperity_force": Var(("snapshot", "asperity", "axis"), "f8", "N", "asperity contact force in the global frame"),
     "asperity_state": Var(("snapshot", "asperity"), "i1", "1",
-                          "contact state (0: out of contact, 1: stick, 3: full slip)"),
+                          "contact state (0: out of contact, 1: stick, 2: partial slip, 3: full slip)"),
 }
 
 COORDS = {

@@ -558,10 +558,6 @@ def test_unreachable_shear_stress_raises_with_partial_dataset(unreachable_R1):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG driver/solver: with two stress-controlled components the failure message is the multi-component "
-    "solver's ('Newton stopped contracting' / 'line search failed on sigma_[1, 2]') and does not name "
-    "the component that cannot be reached (sigma_2)"))
 def test_unreachable_shear_stress_message_names_sigma2(unreachable_R1):
     msg = str(unreachable_R1)
     assert "sigma_2" in msg and "sigma_[1, 2]" not in msg
@@ -594,11 +590,6 @@ def test_unreachable_scalar_raises_quickly_and_writes_output(tmp_path):
     assert not list(out.parent.glob("*.tmp"))  # atomic write leaves no temporary file
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG driver.simulate: the cut-back counter is reset after every converged increment and there is no "
-    "smallest increment, so a stress target that the response approaches asymptotically (here sigma_2 -> "
-    "mu sigma_1 exactly, e = 0, sigma_1 held) makes the driver take ever smaller increments forever "
-    "(> 20000 increments observed) instead of raising StressNotReachableError"))
 def test_asymptotically_unreachable_stress_terminates():
     pop = Population.sample(presets.R1.replace(e=0.0), 2000, seed=3)
     path = LoadPath((Stage(("s", "d", "d"), (500e6, 0, 0), 5), Stage(("s", "s", "d"), (500e6, 1500e6, 0), 5)))
@@ -617,10 +608,6 @@ def test_asymptotically_unreachable_stress_terminates():
             simulate(pop.params, path, population=pop, progress=progress)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG driver.simulate: an exception from inside the loop that is not a solver failure (here from the "
-    "progress callback; likewise KeyboardInterrupt) leaves failure=None, so the file written by output= "
-    "says status 'complete' for a run that stopped part-way"))
 def test_interrupted_run_is_not_recorded_as_complete(tmp_path):
     pop = Population.sample(presets.S1, 1000, seed=1)
     out = tmp_path / "run.nc"
@@ -849,9 +836,6 @@ def test_bad_inputs_raise_value_error_before_any_work(no_work, kw, word):
         simulate(args.pop("params"), args.pop("path"), **args)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG driver.simulate: settings, population and output are not checked "
-                                        "up front (settings='x' is used as is; population='x' gives AttributeError; "
-                                        "output=3 gives TypeError only after the whole run)")
 @pytest.mark.parametrize("kw", [{"settings": "x"}, {"population": "x"}, {"output": 3}])
 def test_bad_settings_or_population_type_raise_value_error(no_work, kw):
     with pytest.raises(ValueError):

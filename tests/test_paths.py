@@ -53,8 +53,6 @@ def test_stage_bad_control_raises_naming_the_value(bad, shown):
     assert "control" in str(exc.value)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG paths.Stage.__post_init__: tuple(control) on a non-iterable "
-                                        "raises TypeError instead of the documented ValueError")
 def test_stage_scalar_control_raises_value_error():
     with pytest.raises(ValueError, match="control"):
         Stage(5, (0.0, 0.0, 0.0), 1)
@@ -112,8 +110,6 @@ def test_stage_negative_and_zero_targets_are_allowed():
     assert st.target == (-1e6, -2e-6, 0.0)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG paths.Stage.__post_init__: tuple(target) on a scalar raises "
-                                        "TypeError instead of the documented ValueError")
 def test_stage_scalar_target_raises_value_error():
     with pytest.raises(ValueError, match="target"):
         Stage(("d", "d", "d"), 1e-6, 1)
@@ -175,8 +171,6 @@ def test_loadpath_rejects_empty_or_non_stage(bad):
         LoadPath(bad)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG paths.LoadPath.__post_init__: tuple(stages) on a non-iterable "
-                                        "(a bare Stage, None) raises TypeError instead of ValueError")
 @pytest.mark.parametrize("bad", [Stage(), None])
 def test_loadpath_rejects_non_iterable_with_value_error(bad):
     with pytest.raises(ValueError):

@@ -307,11 +307,6 @@ def test_mixed_control_sigma1_sigma3_with_delta2_prescribed(pops, name):
     assert res2.iterations <= 4
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG solver._solve_newton: from zero load the first Newton step overshoots far past the target "
-    "(zero/soft tangent), the residual scaled by max|stress| then stays ~1 while Newton walks back "
-    "down a convex curve, so 'rate > 0.9 four times' aborts with 'Newton stopped contracting' although "
-    "it is converging; the one-component solver handles the same start"))
 @pytest.mark.parametrize("target", [100e6, 500e6])
 def test_mixed_control_from_exactly_zero_load(pops, target):
     # fails for R1 at 46 of 48 (seed, start, target) combinations tried, S1 at 31 of 48
