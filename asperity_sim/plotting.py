@@ -240,3 +240,26 @@ def plot_history_vs_paper(runs: dict):
     a2.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def plot_unload_reload(runs: dict):
+    """Shear stress and contact fraction along a path with normal unloading and reloading."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
+    colors = {"R1": "tab:red", "S1": "tab:blue"}
+    for (name, law), ds in runs.items():
+        style = "-" if law == "mdr" else "--"
+        x = path_length(ds) * UM
+        a1.plot(x, ds["stress"].sel(axis=2).values * MPA, style, color=colors.get(name, "k"), label=f"{name}, {law}")
+        n = float(ds.attrs.get("n_asperities", 1))
+        a2.plot(x, ds["n_contact"].values / n, style, color=colors.get(name, "k"), label=f"{name}, {law}")
+        _stage_marks(a1, ds, x)
+        _stage_marks(a2, ds, x)
+    a1.set_xlabel(r"path length $\int|d\Delta|$ [µm] (closure | shear | unload | reload | shear)")
+    a1.set_ylabel(r"shear stress $\sigma_2$ [MPa]")
+    a1.set_title("shear with normal unloading and reloading")
+    a1.legend(fontsize=8)
+    a2.set_xlabel(r"path length $\int|d\Delta|$ [µm]")
+    a2.set_ylabel("fraction of asperities in contact [1]")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
