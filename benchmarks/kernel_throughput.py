@@ -1,9 +1,12 @@
-"""Throughput of the `paper` law assembly kernel (stress + tangent + standard error).
+"""Throughput of the assembly kernels (stress + tangent + standard error), `paper` and `mdr` laws.
 
 Measures, on the R1 set at Delta = (15, 3, 1) um (the issue's reference point):
 - asperity evaluations per second on 1 and 2 threads, counted two ways: per asperity of
   the population (the skipped ones, sorted out by height, cost nothing) and per asperity
   actually visited (those that could touch);
+- for the history law `mdr` (k = 16 springs), after committing a short path to that point:
+  tangential spring updates per second in a trial evaluation (springs in contact visited),
+  the commit time, and the bytes held per asperity;
 - the time of the first call in a fresh process with an empty numba cache (JIT compile)
   against a fresh process with a warm cache.
 
@@ -28,6 +31,7 @@ import numpy as np
 
 from asperity_sim import Population, presets
 from asperity_sim.assemble import Workspace, evaluate
+from asperity_sim.state import MDRHistory
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"
 DELTA = np.array([15e-6, 3e-6, 1e-6])
@@ -58,6 +62,34 @@ def time_evaluate(pop, repeat):
     return ev, best, float(np.median(times))
 
 
+def time_mdr(pop, repeat, k=16):
+    """Trial evaluations of the mdr law at DELTA with a committed history reaching DELTA."""
+    hist = MDRHistory(pop, k=k, dn_cap=DELTA[0])
+    ws = Workspace(pop.n)
+    for s in np.linspace(0.0, 1.0, 11)[1:]:
+        d = DELTA * s
+        ev = evaluate(pop, d, law="mdr", history=hist, workspace=ws)
+        t = time.perf_counter()
+        hist.commit(d, ev.n_active)
+        commit_s = time.perf_counter() - t
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        ev = evaluate(pop, DELTA, law="mdr", history=hist, workspace=ws)
+        times.append(time.perf_counter() - t)
+    sl = hist.slot[hist.slot >= 0]
+    on = hist.dn_c[sl] > 0
+    a = np.sqrt(pop.R[hist.slot >= 0][on] * hist.dn_c[sl][on])
+    springs = int(np.sum(np.ceil(a / hist.h[sl][on] - 0.5)))
+    median = float(np.median(times))
+    return {"k": k, "n_contact": ev.n_contact, "springs_in_contact": springs, "seconds_median": median,
+            "spring_updates_per_s": springs / median, "visited_evals_per_s": ev.n_active / median,
+            "commit_seconds": commit_s, "slots": hist.n_slots,
+            "bytes_per_asperity_population": pop.nbytes / pop.n,
+            "bytes_per_asperity_history": hist.nbytes / pop.n,
+            "bytes_per_contact_slot": (hist.nbytes - hist.slot.nbytes) / max(hist.n_slots, 1)}
+
+
 def first_call(cache_dir):
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
     out = subprocess.run([sys.executable, "-c", FIRST_CALL], env=env, capture_output=True, text=True, check=True)
@@ -73,6 +105,7 @@ def main(argv=None):
     pop = Population.sample(presets.R1, args.n, seed=1)
     rows = []
     max_threads = numba.config.NUMBA_NUM_THREADS
+    mdr_rows = []
     for threads in sorted({1, min(2, max_threads)}):
         numba.set_num_threads(threads)
         ev, best, median = time_evaluate(pop, args.repeat)
@@ -81,6 +114,7 @@ def main(argv=None):
             "seconds_best": best, "seconds_median": median,
             "population_evals_per_s": pop.n / median, "visited_evals_per_s": ev.n_active / median,
         })
+        mdr_rows.append({"threads": threads, **time_mdr(pop, max(3, args.repeat // 3))})
     numba.set_num_threads(max_threads)
     with tempfile.TemporaryDirectory() as cache:
         cold = first_call(cache)
@@ -90,6 +124,7 @@ def main(argv=None):
                     "numpy": np.__version__, "processor": platform.processor() or platform.machine()},
         "point": {"params": "R1", "delta_m": DELTA.tolist()},
         "throughput": rows,
+        "mdr": mdr_rows,
         "first_call_s": {"cold_cache": {"import_and_sample": cold[0], "first_evaluate": cold[1]},
                          "warm_cache": {"import_and_sample": warm[0], "first_evaluate": warm[1]}},
     }
@@ -101,6 +136,16 @@ def main(argv=None):
     for r in rows:
         print(f"{r['threads']:>7} {r['seconds_median'] * 1e3:>12.2f} {r['population_evals_per_s']:>19.3e} "
               f"{r['visited_evals_per_s']:>16.3e}")
+    print(f"law mdr, k = {mdr_rows[0]['k']}: {mdr_rows[0]['n_contact']} contacts, "
+          f"{mdr_rows[0]['springs_in_contact']} springs in contact")
+    print(f"{'threads':>7} {'median [ms]':>12} {'spring updates/s':>17} {'commit [ms]':>12}")
+    for r in mdr_rows:
+        print(f"{r['threads']:>7} {r['seconds_median'] * 1e3:>12.2f} {r['spring_updates_per_s']:>17.3e} "
+              f"{r['commit_seconds'] * 1e3:>12.1f}")
+    m = mdr_rows[-1]
+    print(f"bytes per asperity: population {m['bytes_per_asperity_population']:.0f}, mdr history "
+          f"{m['bytes_per_asperity_history']:.1f} (slot map 4 + {m['bytes_per_contact_slot']:.0f} per asperity "
+          f"that has touched; {m['slots']} of {pop.n} have)")
     print(f"first evaluate in a fresh process: {cold[1]:.2f} s with an empty numba cache (JIT), "
           f"{warm[1]:.3f} s with a warm cache")
     return 0
