@@ -22,6 +22,9 @@ def write_netcdf(ds: xr.Dataset, path) -> Path:
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
     try:
         ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
         os.replace(tmp, path)
