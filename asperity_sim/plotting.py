@@ -235,7 +235,9 @@ def plot_history_vs_paper(runs: dict):
     a1.legend(fontsize=8)
     a2.axhline(0.0, color="0.6", lw=0.8)
     a2.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
-    a2.set_ylabel("difference of shear resistance [1] (band: ±2 s.e. of one curve)")
+    a2.set_ylabel("mdr − paper, shear resistance [1]")
+    a2.text(0.98, 0.02, "band: ±2 s.e. of one curve (the common-sample difference is known better)",
+             transform=a2.transAxes, ha="right", va="bottom", fontsize=7, color="0.4")
     a2.set_title("history effect")
     a2.legend(fontsize=8)
     fig.tight_layout()
