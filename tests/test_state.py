@@ -157,3 +157,39 @@ def test_flat_on_rough_shear_follows_ciavarella_jaeger_and_masing():
         else:
             se = np.r_[se2[load], se2[unload]]
             assert np.all(np.abs(got - exp) < 4 * se + 1e-3 * params.mu * sigma1(D1))
+
+
+@pytest.mark.slow
+def test_mdr_with_birth_policy_closes_energy_and_differs_from_follow():
+    """Policy `birth` freezes each contact's frame at its birth (SPEC §3): the springs then do not turn."""
+    path = random_path(3)
+    pop = Population.sample(R1, 4000, seed=5)
+    a = simulate(R1, path, population=pop, law="mdr", policy="birth")
+    b = simulate(R1, path, population=pop, law="mdr", policy="follow")
+    W, E, D = a.external_work.values, a.elastic_energy.values, a.dissipation.values
+    assert np.abs(W - E - D).max() <= 1e-10 * np.abs(W).max()
+    assert np.all(np.diff(D) >= 0.0)
+    assert np.abs(a.stress.values - b.stress.values).max() > 1e-3 * np.abs(b.stress.values).max()
+
+
+def test_mdr_birth_tangent_against_finite_differences():
+    from asperity_sim.assemble import birth_angles
+
+    pop = Population.sample(R1, 3000, seed=1)
+    hist = MDRHistory(pop, k=16, dn_cap=15 * um)
+    tb = np.full(pop.n, np.nan)
+    for d in [np.array([x, 0.3 * x, 0]) for x in np.linspace(0, 15, 6)[1:] * um]:
+        ev = evaluate(pop, d, law="mdr", policy="birth", theta_birth=tb, history=hist)
+        hist.commit(d, ev.n_active, tb)
+        birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, d, R1.r_o, R1.k_e, tb)
+    d = np.array([16, 5, 1]) * um
+    ev = evaluate(pop, d, law="mdr", policy="birth", theta_birth=tb, history=hist)
+    T_fd = np.empty((3, 3))
+    h = 1e-7 * um
+    for k in range(3):
+        dp, dm = d.copy(), d.copy()
+        dp[k] += h
+        dm[k] -= h
+        T_fd[:, k] = (evaluate(pop, dp, law="mdr", policy="birth", theta_birth=tb, history=hist).stress
+                      - evaluate(pop, dm, law="mdr", policy="birth", theta_birth=tb, history=hist).stress) / (2 * h)
+    assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
