@@ -11,6 +11,10 @@ Relations: Eq. (23) (Monte Carlo), `paper` law, Newton on sigma_1 at every incre
 error bars by the delta method (the Monte Carlo error of sigma_1 moves the solved
 Delta_1); the quadrature reference solves the same path with Brent's method.
 
+The scenes (parameters, path, n, seed) are the scene files
+scenarios/constant_normal_shear_R1.toml and constant_normal_shear_S1.toml, which
+`asperity-sim run` takes too; options here override them.
+
 Run:   python scenarios/constant_normal_shear.py [--n 200000] [--sigma-n 500e6]
 Writes outputs/constant_normal_shear_R1.nc, ..._S1.nc, outputs/constant_normal_shear.png.
 Expected run time: about 30 s with a warm numba cache (mostly the quadrature reference).
@@ -18,43 +22,66 @@ Expected run time: about 30 s with a warm numba cache (mostly the quadrature ref
 
 from __future__ import annotations
 
+import dataclasses
 import sys
+from pathlib import Path
 
 import numpy as np
 from _common import Timer, add_reference, check_positive, fmt, parse_args
 
-from asperity_sim import paths, presets, simulate
+from asperity_sim import paths
 from asperity_sim.io import read_netcdf, write_netcdf
 from asperity_sim.plotting import plot_constant_normal_shear, shear_stage
+from asperity_sim.scene import load_scene
+
+SCENES = {name: Path(__file__).resolve().parent / f"constant_normal_shear_{name}.toml" for name in ("R1", "S1")}
 
 
-def _extra(p):
-    p.add_argument("--sigma-n", type=float, default=500e6, help="normal stress [Pa] (default 500e6)")
-    p.add_argument("--d2-max", type=float, default=50e-6, help="final shear displacement [m] (default 50e-6)")
+def _extra(p, scene):
+    p.set_defaults(seed=scene.seed, sampler=scene.sampler)  # defaults from the scene file
+    p.add_argument("--sigma-n", type=float, default=None, help="normal stress [Pa] (default: the scene files', 500e6)")
+    p.add_argument("--d2-max", type=float, default=None,
+                   help="final shear displacement [m] (default: the scene files', 50e-6)")
+
+
+def adjust_path(path, sigma_n=None, d2_max=None, inc=None):
+    """The scene's path with another normal stress [Pa], final Delta_2 [m] or increments per stage.
+
+    Delta_2 targets are capped at d2_max and the last stage ends there; a stage that no
+    longer moves (same targets as the one before) is dropped.
+    """
+    stages = []
+    for st in path.stages:
+        t = list(st.target)
+        t[0] = t[0] if sigma_n is None else sigma_n
+        t[1] = t[1] if d2_max is None else min(t[1], d2_max)
+        stages.append(dataclasses.replace(st, target=tuple(t), increments=inc or st.increments))
+    if d2_max is not None:
+        stages[-1] = dataclasses.replace(stages[-1], target=(stages[-1].target[0], d2_max, stages[-1].target[2]))
+    kept = [st for i, st in enumerate(stages)
+            if i == 0 or (st.target, st.control) != (stages[i - 1].target, stages[i - 1].control)]
+    return paths.LoadPath(tuple(kept), name=path.name)
 
 
 def shear_path(sigma_n, d2_max, inc):
-    S, D = paths.STRESS, paths.DISPLACEMENT
-    d2_fine = min(10e-6, d2_max)
-    stages = [paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
-              paths.Stage((S, D, D), (sigma_n, d2_fine, 0.0), inc, name="shear (fine increments)")]
-    if d2_max > d2_fine:
-        stages.append(paths.Stage((S, D, D), (sigma_n, d2_max, 0.0), inc, name="shear (coarse increments)"))
-    return paths.LoadPath(tuple(stages), name="constant_normal_shear")
+    """The Fig. 13 path of the R1 scene file at normal stress sigma_n [Pa], to Delta_2 = d2_max [m]."""
+    return adjust_path(load_scene(SCENES["R1"]).path, sigma_n, d2_max, inc)
 
 
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], n_default=200_000, argv=argv, extra=_extra)
-    sigma_n = check_positive("--sigma-n [Pa]", args.sigma_n)
-    d2_max = check_positive("--d2-max [m]", args.d2_max)
-    inc = args.increments or (4 if args.quick else 40)
+    scenes = {name: load_scene(f) for name, f in SCENES.items()}
+    args = parse_args(__doc__.splitlines()[0], n_default=scenes["R1"].n, argv=argv,
+                      extra=lambda p: _extra(p, scenes["R1"]))
+    sigma_n = None if args.sigma_n is None else check_positive("--sigma-n [Pa]", args.sigma_n)
+    d2_max = None if args.d2_max is None else check_positive("--d2-max [m]", args.d2_max)
+    inc = args.increments or (4 if args.quick else None)
     args.outdir.mkdir(parents=True, exist_ok=True)
-    path = shear_path(sigma_n, d2_max, inc)
     files = {}
-    for name in ("R1", "S1"):
-        params = presets.TABLE1[name]
+    for name, scene in scenes.items():
+        params = scene.params
+        path = adjust_path(scene.path, sigma_n, d2_max, inc)
         with Timer() as t:
-            ds = simulate(params, path, n=args.n, seed=args.seed, sampler=args.sampler)
+            ds = scene.replace(path=path, n=args.n, seed=args.seed, sampler=args.sampler).simulate()
         ds.attrs["wall_time_s"] = t.seconds
         if not args.no_reference:
             ds = add_reference(ds, params, level="fast" if args.quick else "default")

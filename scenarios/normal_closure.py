@@ -10,6 +10,9 @@ initial closure r_o, which widens the orientation cone only (SPEC §3).
 Relations: Eq. (23) (Monte Carlo), Eq. (9) for theta_m, Eq. (29) for theta_am; the
 quadrature reference solves the same stress targets by Brent's method.
 
+The scenes (parameters, path, n, seed) are the scene files scenarios/normal_closure_R2.toml
+and normal_closure_S2.toml, which `asperity-sim run` takes too; options here override them.
+
 Run:   python scenarios/normal_closure.py [--n 200000] [--sigma-max 50e6]
 Writes outputs/normal_closure_R2.nc, outputs/normal_closure_S2.nc, outputs/normal_closure.png.
 Expected run time: about 10 s with a warm numba cache.
@@ -17,35 +20,50 @@ Expected run time: about 10 s with a warm numba cache.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
+from pathlib import Path
 
 from _common import Timer, add_reference, check_positive, fmt, parse_args
 
-from asperity_sim import paths, presets, simulate
+from asperity_sim import paths
 from asperity_sim.io import read_netcdf, write_netcdf
 from asperity_sim.plotting import plot_normal_closure
+from asperity_sim.scene import load_scene, scale_increments
+
+SCENES = {name: Path(__file__).resolve().parent / f"normal_closure_{name}.toml" for name in ("R2", "S2")}
 
 
-def _extra(p):
-    p.add_argument("--sigma-max", type=float, default=50e6, help="largest normal stress [Pa] (default 50e6)")
+def _extra(p, scene):
+    p.set_defaults(seed=scene.seed, sampler=scene.sampler)  # defaults from the scene file
+    p.add_argument("--sigma-max", type=float, default=None,
+                   help="largest normal stress [Pa] (default: the scene files', 50e6)")
+
+
+def scale_stress(path, sigma_max):
+    """The path with its normal-stress targets scaled so that the largest is sigma_max [Pa]."""
+    top = max(st.target[0] for st in path.stages)
+    if sigma_max == top:
+        return path
+    stages = tuple(dataclasses.replace(st, target=(st.target[0] * sigma_max / top,) + st.target[1:])
+                   for st in path.stages)
+    return paths.LoadPath(stages, name=path.name)
 
 
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], n_default=200_000, argv=argv, extra=_extra)
-    sigma_max = check_positive("--sigma-max [Pa]", args.sigma_max)
-    inc = args.increments or (4 if args.quick else 40)
+    scenes = {name: load_scene(f) for name, f in SCENES.items()}
+    args = parse_args(__doc__.splitlines()[0], n_default=scenes["R2"].n, argv=argv,
+                      extra=lambda p: _extra(p, scenes["R2"]))
+    sigma_max = None if args.sigma_max is None else check_positive("--sigma-max [Pa]", args.sigma_max)
     args.outdir.mkdir(parents=True, exist_ok=True)
-    S, D = paths.STRESS, paths.DISPLACEMENT
-    # finer stress increments at low load, where the closure grows fastest
-    stages = [paths.Stage((S, D, D), (fraction * sigma_max, 0.0, 0.0), max(1, int(share * inc)), name=label)
-              for fraction, share, label in ((0.01, 0.25, "first contacts"), (0.1, 0.25, "low load"),
-                                             (1.0, 1.0, "normal loading"))]
-    path = paths.LoadPath(tuple(stages), name="normal_closure")
     files = {}
-    for name in ("R2", "S2"):
-        params = presets.TABLE1[name]
+    for name, scene in scenes.items():
+        params = scene.params
+        path = scene.path if sigma_max is None else scale_stress(scene.path, sigma_max)
+        if args.increments or args.quick:
+            path = scale_increments(path, args.increments or 4)
         with Timer() as t:
-            ds = simulate(params, path, n=args.n, seed=args.seed, sampler=args.sampler)
+            ds = scene.replace(path=path, n=args.n, seed=args.seed, sampler=args.sampler).simulate()
         ds.attrs["wall_time_s"] = t.seconds
         if not args.no_reference:
             ds = add_reference(ds, params, level="fast" if args.quick else "default")

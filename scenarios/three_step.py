@@ -9,6 +9,9 @@ end of step 2 equals sigma_3 at the end of step 3.
 Relations: Eq. (23) as a Monte Carlo mean over a sampled population, `paper` law
 (Eqs. 16–22), policy `follow`; the quadrature of Eq. (23) as the dashed reference.
 
+The scenes (parameters, path, n, seed) are the scene files scenarios/three_step_R1.toml
+and three_step_S1.toml, which `asperity-sim run` takes too; options here override them.
+
 Run:   python scenarios/three_step.py [--n 200000] [--seed 2024]
 Writes outputs/three_step_R1.nc, outputs/three_step_S1.nc, outputs/three_step.png.
 Expected run time: about 10 s with a warm numba cache (n = 200000, 30 increments per step).
@@ -17,26 +20,29 @@ Expected run time: about 10 s with a warm numba cache (n = 200000, 30 increments
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from _common import Timer, add_reference, fmt, parse_args
 
-from asperity_sim import paths, presets, simulate
 from asperity_sim.io import read_netcdf, write_netcdf
 from asperity_sim.plotting import plot_three_step
+from asperity_sim.scene import load_scene, scale_increments
 
-D_MAX = {"R1": 15e-6, "S1": 6e-6}
+SCENES = {name: Path(__file__).resolve().parent / f"three_step_{name}.toml" for name in ("R1", "S1")}
 
 
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], n_default=200_000, argv=argv)
-    inc = args.increments or (4 if args.quick else 30)
+    scenes = {name: load_scene(f) for name, f in SCENES.items()}
+    args = parse_args(__doc__.splitlines()[0], n_default=scenes["R1"].n, argv=argv,
+                      extra=lambda p: p.set_defaults(seed=scenes["R1"].seed, sampler=scenes["R1"].sampler))
     args.outdir.mkdir(parents=True, exist_ok=True)
     files = {}
-    for name, d_max in D_MAX.items():
-        params = presets.TABLE1[name]
+    for name, scene in scenes.items():
+        params = scene.params
+        if args.increments or args.quick:
+            scene = scene.replace(path=scale_increments(scene.path, args.increments or 4))
         with Timer() as t:
-            ds = simulate(params, paths.three_step(d_max, increments=inc), n=args.n, seed=args.seed,
-                          sampler=args.sampler)
+            ds = scene.replace(n=args.n, seed=args.seed, sampler=args.sampler).simulate()
         ds.attrs["wall_time_s"] = t.seconds
         if not args.no_reference:
             ds = add_reference(ds, params, level="fast" if args.quick else "default")

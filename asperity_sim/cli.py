@@ -1,0 +1,436 @@
+"""The ``asperity-sim`` command line: run scenes, plot and inspect run files, sweep on Dask.
+
+Owns the user-facing commands (``python -m asperity_sim`` is the same)::
+
+    asperity-sim run SCENE.toml [-o OUT.nc] [--n N] [--seed S] [--quiet]
+    asperity-sim plot OUT.nc [-o FIG.png]
+    asperity-sim info OUT.nc
+    asperity-sim presets
+    asperity-sim sweep SWEEP.toml [-o OUT.nc] [--scheduler tcp://host:port | --serial] [--workers 2] [--n N]
+
+Every input is checked before anything runs or is written.  An error is one line on
+stderr (what, which value, what is allowed) and a non-zero exit status: 1 bad input or
+file, 2 bad command line, 3 a run stopped before the end of its path (what converged is
+written), 130 interrupted.  ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+PROG = "asperity-sim"
+EXIT_INPUT, EXIT_USAGE, EXIT_FAILED, EXIT_INTERRUPTED = 1, 2, 3, 130
+
+
+class UsageError(Exception):
+    """A command-line error (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line instead of usage + message
+        raise UsageError(f"{self.prog}: error: {message} (see {self.prog} --help)")
+
+
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v} is out of range (valid range: integer >= 1)")
+    return v
+
+
+def _seed(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{v} is out of range (valid range: integer >= 0)")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="show the full traceback of an error")
+    p = _Parser(prog=PROG, parents=[common],
+                description="Monte Carlo simulator of rough interfaces (Misra & Huang): run scene files, "
+                            "plot and inspect run files, sweep parameters and replicas on Dask.")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    r = sub.add_parser("run", parents=[common], help="run a scene file and write its netCDF",
+                       description="Run SCENE.toml and write the run file (netCDF).")
+    r.add_argument("scene", type=Path, metavar="SCENE.toml")
+    r.add_argument("-o", "--output", type=Path, metavar="OUT.nc",
+                   help="run file to write (default: [output] file of the scene, else <scene name>.nc)")
+    r.add_argument("--n", type=_positive_int, help="sampled asperities (overrides [run] n)")
+    r.add_argument("--seed", type=_seed, help="sampling seed (overrides [run] seed)")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    pl = sub.add_parser("plot", parents=[common], help="draw the standard figure of a run or sweep file",
+                        description="Draw the standard figure of a run (or sweep) file, from the file alone.")
+    pl.add_argument("file", type=Path, metavar="OUT.nc")
+    pl.add_argument("-o", "--output", type=Path, metavar="FIG.png", help="figure to write (default: OUT.png)")
+
+    i = sub.add_parser("info", parents=[common], help="summarise a run or sweep file",
+                       description="Parameters, law, sample size, steps and convergence of a run (or sweep) file.")
+    i.add_argument("file", type=Path, metavar="OUT.nc")
+
+    sub.add_parser("presets", parents=[common], help="list the parameter sets that ship (Table 1), with units",
+                   description="The parameter sets that ship (the paper's Table 1), with units.")
+
+    s = sub.add_parser("sweep", parents=[common], help="run a grid of parameters and replicas (on Dask)",
+                       description="Run the grid and replicas of SWEEP.toml and write one netCDF file.")
+    s.add_argument("sweep", type=Path, metavar="SWEEP.toml")
+    s.add_argument("-o", "--output", type=Path, metavar="OUT.nc",
+                   help="sweep file to write (default: [output] file, else <sweep name>.nc)")
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="tcp://host:port", help="address of a running Dask scheduler")
+    where.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
+    s.add_argument("--workers", type=_positive_int, default=2, help="workers of the local Dask cluster (default 2)")
+    s.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    return p
+
+
+def main(argv=None) -> int:
+    """Entry point of the console script; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv
+    # idle OpenMP threads sleep instead of spinning (no effect once numba's thread pool started;
+    # see asperity_sim.sweep.worker_env); an explicit setting wins
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    try:
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args)
+    except SystemExit as err:  # --help
+        return int(err.code or 0)
+    except UsageError as err:
+        if debug:
+            raise
+        print(err, file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt as err:
+        if debug:
+            raise
+        return _fail(f"interrupted{': ' + str(err) if str(err) else ''}", EXIT_INTERRUPTED)
+    except Exception as err:  # noqa: BLE001 - every error becomes one line
+        if debug:
+            raise
+        return _fail(_one_line(err), _exit_code(err))
+
+
+def _exit_code(err):
+    from .driver import SimulationError
+
+    return EXIT_FAILED if isinstance(err, SimulationError) else EXIT_INPUT
+
+
+def _one_line(err) -> str:
+    from .driver import SimulationError
+
+    text = " ".join(str(err).split())
+    if isinstance(err, (ValueError, SimulationError)):
+        return text
+    if isinstance(err, OSError):
+        return f"{err.strerror or text}: {err.filename}" if err.filename else text
+    return f"{type(err).__name__}: {text} (rerun with --debug for the traceback)"
+
+
+def _fail(message, code) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return code
+
+
+# -- run ---------------------------------------------------------------------
+
+def _check_output(path: Path, inputs=(), suffixes=(".nc", ".nc4")) -> Path:
+    """Refuse an output that would overwrite an input or is not writable; create its folder."""
+    if path.suffix not in suffixes:
+        raise ValueError(f"output {str(path)!r} must end in {' or '.join(suffixes)}")
+    for p in inputs:
+        if path.exists() and p.exists() and os.path.samefile(path, p):
+            raise ValueError(f"output {str(path)!r} is the input file; choose another name")
+    if path.is_dir():
+        raise ValueError(f"output {str(path)!r} is a folder; give a file name")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not os.access(path.parent, os.W_OK):
+        raise ValueError(f"output folder {str(path.parent)!r} is not writable")
+    return path
+
+
+def cmd_run(args) -> int:
+    from .driver import SimulationError
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    changes = {k: getattr(args, k) for k in ("n", "seed") if getattr(args, k) is not None}
+    scene = scene.replace(**changes)
+    out = _check_output(args.output or scene.default_output(), inputs=(args.scene,))
+    bar = None if args.quiet or not sys.stderr.isatty() else ProgressBar(scene.path, sys.stderr)
+    t0 = time.perf_counter()
+    try:
+        ds = scene.simulate(output=out, progress=bar)
+    except SimulationError as err:
+        if bar:
+            bar.close()
+        steps = 0
+        if err.dataset is not None:
+            steps = err.dataset.sizes["step"] - 1
+            _write_with_scene(err.dataset, out, scene, args.scene)
+        raise type(err)(f"run stopped: {err} [{steps} converged increments written to {out}]") from err
+    except KeyboardInterrupt:
+        if bar:
+            bar.close()
+        raise KeyboardInterrupt(f"the converged increments are in {out}") from None
+    if bar:
+        bar.close()
+    _write_with_scene(ds, out, scene, args.scene)
+    print(f"wrote {out}: {scene.path.name} path, {ds.sizes['step'] - 1} increments, n = {scene.n}, "
+          f"seed = {scene.seed}, {time.perf_counter() - t0:.1f} s, status {ds.attrs.get('status')}")
+    return 0
+
+
+def _write_with_scene(ds, out, scene, scene_file):
+    """Rewrite the run file with the scene's title, file name and text (provenance), atomically."""
+    from .io import write_netcdf
+
+    if scene.title:
+        ds.attrs["title"] = scene.title
+    ds.attrs["scene_file"] = str(Path(scene_file).resolve())
+    ds.attrs["scene"] = Path(scene_file).read_text(encoding="utf-8")
+    ds.attrs["history"] = (f"{ds.attrs.get('history', '')}\n"
+                           f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}").strip()
+    write_netcdf(ds, out)
+
+
+class ProgressBar:
+    """A one-line progress bar for :func:`asperity_sim.simulate`'s ``progress`` callback."""
+
+    def __init__(self, path, stream, width=28):
+        self.increments = [s.increments for s in path.stages]
+        self.total = sum(self.increments)
+        self.stream, self.width = stream, width
+        self.t0 = time.perf_counter()
+
+    def __call__(self, stage, n_stages, fraction, step, iterations):
+        self.stream.write("\r" + progress_line(self.increments, stage, n_stages, fraction, step, iterations,
+                                               time.perf_counter() - self.t0, self.width))
+        self.stream.flush()
+
+    def close(self):
+        self.stream.write("\n")
+        self.stream.flush()
+
+
+def progress_line(increments, stage, n_stages, fraction, step, iterations, elapsed, width=28) -> str:
+    """``stage 2/3 [#####.....]  47%  step 73/120  Newton  3  12.1 s``: overall fraction weighted by increments."""
+    done = (sum(increments[: stage - 1]) + fraction * increments[stage - 1]) / sum(increments)
+    filled = int(round(done * width))
+    return (f"stage {stage}/{n_stages} [{'#' * filled}{'.' * (width - filled)}] {100 * done:3.0f}%  "
+            f"step {step}/{sum(increments)}  Newton {iterations:2d}  {elapsed:6.1f} s")
+
+
+# -- plot ----------------------------------------------------------------------
+
+def _read_run(path: Path):
+    from .io import read_netcdf
+
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    try:
+        ds = read_netcdf(path)
+    except (OSError, ValueError):
+        raise ValueError(f"{path}: not a netCDF file (asperity-sim plot and info read run files written by "
+                         f"asperity-sim run or sweep)") from None
+    kind = ds.attrs.get("kind", "run")
+    if "stress" not in ds or "displacement" not in ds:
+        raise ValueError(f"{path}: not an asperity_sim run or sweep file (no stress and displacement variables)")
+    return ds, kind
+
+
+def cmd_plot(args) -> int:
+    import matplotlib.pyplot as plt
+
+    from .plotting import plot_run
+    from .sweep import plot_sweep
+
+    out = args.output or args.file.with_suffix(".png")
+    fig0 = plt.figure()
+    supported = fig0.canvas.get_supported_filetypes()
+    plt.close(fig0)
+    if out.suffix.lstrip(".").lower() not in supported:
+        raise ValueError(f"figure {str(out)!r}: unknown format {out.suffix or '(none)'!r} "
+                         f"(valid: {', '.join('.' + k for k in sorted(supported))})")
+    ds, kind = _read_run(args.file)
+    _check_output(out, inputs=(args.file,), suffixes=(out.suffix,))
+    with warnings.catch_warnings():  # an empty legend of plot_run is not the user's business
+        warnings.filterwarnings("ignore", message="No artists with labels found")
+        fig = plot_sweep(ds) if kind == "sweep" else plot_run(ds)
+        fig.savefig(out, dpi=130)
+    plt.close(fig)
+    print(f"wrote {out}")
+    return 0
+
+
+# -- info ------------------------------------------------------------------------
+
+def cmd_info(args) -> int:
+    ds, kind = _read_run(args.file)
+    print(info_text(ds, args.file))
+    return 0
+
+
+def _params_lines(attrs):
+    from .params import InterfaceParams
+    from .scene import format_quantity
+
+    lines = []
+    longs = InterfaceParams.long_names()
+    for name, unit in InterfaceParams.units().items():
+        key = f"param_{name}"
+        if key in attrs:
+            v = float(attrs[key])
+            readable = format_quantity(v, unit) if unit != "1" else f"{v:.6g}"
+            if f"{key}_note" in attrs:
+                lines.append(f"  {name:8s} = {'swept':>14s}   [see grid]  {longs[name]}")
+            else:
+                lines.append(f"  {name:8s} = {readable:>14s}   [{v:.6g} {unit}]  {longs[name]}")
+    return lines
+
+
+def info_text(ds, path) -> str:
+    """A plain-text summary of a run or sweep file."""
+    a = ds.attrs
+    lines = [f"{path}: {a.get('title', '')}", f"  {a.get('source', '?')}, created {a.get('date_created', '?')}"]
+    if a.get("kind") == "sweep":
+        return "\n".join(lines + _sweep_info(ds))
+    if "scene_file" in a:
+        lines.append(f"scene: {a['scene_file']}")
+    lines.append(f"status: {a.get('status', '?')}")
+    lines.append(f"law {a.get('law')}, policy {a.get('policy')}, sampler {a.get('sampler')}, "
+                 f"n = {a.get('n_asperities')}, seed = {a.get('seed')}")
+    lines.append("parameters:")
+    lines += _params_lines(a)
+    lines.append("load path:")
+    lines += ["  " + line for line in str(a.get("load_path", "?")).splitlines()]
+    it, cuts, res = ds["iterations"].values[1:], ds["cutbacks"].values[1:], ds["residual"].values[1:]
+    steps = ds.sizes["step"] - 1
+    lines.append(f"steps: {steps} converged increments over {int(ds['stage'].values.max())} stage(s)"
+                 + (f", wall time {float(a['wall_time_s']):.2f} s" if "wall_time_s" in a else ""))
+    if steps:
+        lines.append(f"convergence: Newton iterations total {int(it.sum())}, mean {it.mean():.2f}, max {int(it.max())};"
+                     f" cut-backs {int(cuts.sum())}; largest final residual {res.max():.2g}")
+        last = ds.isel(step=-1)
+        d, s = last["displacement"].values, last["stress"].values
+        sd, ss = last["displacement_stderr"].values, last["stress_stderr"].values
+        lines.append("final state:")
+        for k in range(3):
+            lines.append(f"  Delta_{k + 1} = {d[k] * 1e6:10.4g} ± {sd[k] * 1e6:.2g} um   "
+                         f"sigma_{k + 1} = {s[k] * 1e-6:10.4g} ± {ss[k] * 1e-6:.2g} MPa")
+        n = max(int(a.get("n_asperities", 1)), 1)
+        lines.append(f"  in contact {int(last['n_contact'])} ({100 * int(last['n_contact']) / n:.3g} %), "
+                     f"full slip {int(last['n_slip'])}")
+    return "\n".join(lines)
+
+
+def _sweep_info(ds):
+    a = ds.attrs
+    status = ds["status"].values.ravel()
+    complete = int(np.sum(status == "complete"))
+    lines = [f"sweep of {a.get('runs')} runs on {a.get('engine')}, {float(a.get('wall_time_s', np.nan)):.1f} s",
+             f"grid: {a.get('grid')}",
+             f"replicas: {a.get('replicas')} (seeds {a.get('seeds')})",
+             f"law {a.get('law')}, policy {a.get('policy')}, sampler {a.get('sampler')}, n = {a.get('n_asperities')}",
+             "parameters (base values):"]
+    lines += _params_lines(a)
+    lines.append("load path:")
+    lines += ["  " + line for line in str(a.get("load_path", "?")).splitlines()]
+    lines.append(f"runs complete: {complete} of {status.size}; interpolated onto the nominal steps: "
+                 f"{int(np.sum(ds['aligned_exactly'].values == 0))}")
+    for s in sorted(set(status) - {"complete"}):
+        lines.append(f"  {int(np.sum(status == s))} run(s): {s}")
+    lines.append(f"convergence: Newton iterations total {int(ds['total_iterations'].sum())}, max per increment "
+                 f"{int(ds['max_iterations'].max())}; cut-backs {int(ds['total_cutbacks'].sum())}")
+    return lines
+
+
+# -- presets -----------------------------------------------------------------------
+
+def presets_text() -> str:
+    """The Table 1 parameter sets, one row per parameter, with SI units."""
+    from .params import InterfaceParams
+    from .presets import TABLE1
+
+    names = list(TABLE1)
+    units, longs = InterfaceParams.units(), InterfaceParams.long_names()
+    head = f"{'parameter':10s} {'unit':5s} " + " ".join(f"{n:>11s}" for n in names) + "  meaning"
+    lines = ["Parameter sets (the paper's Table 1, SI units; e = 1, b = c = d = 0 per SPEC §1).",
+             "Use in a scene file: [parameters] preset = \"R1\", plus overrides such as R_m = \"50 um\".", "",
+             head, "-" * len(head)]
+    for field, unit in units.items():
+        vals = " ".join(f"{getattr(TABLE1[n], field):11.4g}" for n in names)
+        lines.append(f"{field:10s} {unit:5s} {vals}  {longs[field]}")
+    return "\n".join(lines)
+
+
+def cmd_presets(args) -> int:
+    print(presets_text())
+    return 0
+
+
+# -- sweep ---------------------------------------------------------------------------
+
+def cmd_sweep(args) -> int:
+    from .io import write_netcdf
+    from .sweep import dask_available, load_sweep, run_sweep
+
+    sweep = load_sweep(args.sweep)
+    if args.n is not None:
+        import dataclasses
+
+        sweep = dataclasses.replace(sweep, scene=sweep.scene.replace(n=args.n))
+    out = _check_output(args.output or sweep.default_output(), inputs=(args.sweep,))
+    scheduler = "serial" if args.serial else args.scheduler
+    if scheduler not in (None, "serial") and not dask_available():
+        raise ValueError(f"--scheduler {scheduler} needs dask.distributed, which is not installed "
+                         "(pip install 'asperity-sim[distributed]')")
+    tty = sys.stderr.isatty() and not args.quiet
+    t0 = time.perf_counter()
+
+    def progress(done, total):
+        if tty:
+            sys.stderr.write(f"\rsweep: {done}/{total} runs done  {time.perf_counter() - t0:6.1f} s")
+            sys.stderr.flush()
+
+    def note(message):
+        print(f"{PROG}: note: {message}", file=sys.stderr)
+
+    ds = run_sweep(sweep, scheduler=scheduler, workers=args.workers, progress=progress, note=note)
+    if tty:
+        sys.stderr.write("\n")
+    write_netcdf(ds, out)
+    complete = int(np.sum(ds["status"].values == "complete"))
+    print(f"wrote {out}: {ds.attrs['runs']} runs ({complete} complete), dims "
+          f"{', '.join(f'{d} = {ds.sizes[d]}' for d in (*sweep.grid, 'replica'))}, on {ds.attrs['engine']}, "
+          f"{time.perf_counter() - t0:.1f} s")
+    if complete < ds.attrs["runs"]:
+        return _fail(f"{ds.attrs['runs'] - complete} of {ds.attrs['runs']} runs stopped before the end of the path "
+                     f"(what converged is in {out}; see {PROG} info {out})", EXIT_FAILED)
+    return 0
+
+
+COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep}
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,389 @@
+"""Scene files: one run described in TOML, with quantities written with their units.
+
+Owns the translation of a scene file into the objects :func:`asperity_sim.simulate`
+takes (``InterfaceParams``, ``LoadPath``, run settings).  Read with the standard library
+(``tomllib``).  Every value is checked before anything runs; a bad one raises
+:class:`SceneError` (a ``ValueError``) naming the file, the key, the value and what is
+allowed.  The layout (``scenarios/*.toml`` are complete examples)::
+
+    title = "free text"                      # optional
+    [parameters]                             # a Table 1 preset plus overrides (SPEC §1)
+    preset = "R1"                            # R1, S1, R2, S2; without it give every field
+    mu = 0.6                                 # dimensionless: a plain number
+    R_m = "50 um"                            # length: nm, um (µm), mm, cm, m
+    G = "80 GPa"                             # stress: Pa, kPa, MPa, GPa
+    N = "200 /mm2"                           # areal density: 1/m2, 1/mm2, 1/um2 (also m-2, ...)
+    [run]                                    # optional; defaults shown
+    n = 100000                               # sampled asperities
+    seed = 0
+    sampler = "random"                       # random, sobol
+    law = "paper"                            # paper, mdr
+    policy = "follow"                        # follow, birth
+    k = 16                                   # tangential springs per contact (law mdr)
+    [output]                                 # optional
+    file = "run.nc"                          # relative to the current directory; default <scene>.nc
+    snapshots = "stage_ends"                 # or a list of step numbers
+    [path]
+    name = "constant_normal_shear"           # optional label
+    [[path.stages]]                          # one table per stage (SPEC §6): each component k is
+    name = "normal loading"                  # displacement controlled (Delta_k = length) or
+    increments = 40                          # stress controlled (sigma_k = stress), never both
+    sigma_1 = "500 MPa"
+    Delta_2 = "0 um"
+    Delta_3 = "0 um"
+    # adaptive = false, max_fraction = 0.1   (optional, see asperity_sim.paths.Stage)
+
+A plain TOML number is taken in SI units (m, Pa, 1/m²).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import numbers
+import re
+from decimal import Decimal
+from dataclasses import dataclass
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from . import paths, presets
+from .params import InterfaceParams
+
+__all__ = ["Scene", "SceneError", "load_scene", "scene_from_dict", "parse_quantity", "UNITS",
+           "format_quantity", "check_keys", "read_toml"]
+
+
+class SceneError(ValueError):
+    """A scene or sweep file that cannot be used; the message says where, what and what is allowed."""
+
+
+# -- units ------------------------------------------------------------------
+
+_LENGTH = {"m": Decimal(1), "cm": Decimal("1e-2"), "mm": Decimal("1e-3"), "um": Decimal("1e-6"),
+           "µm": Decimal("1e-6"), "μm": Decimal("1e-6"), "nm": Decimal("1e-9")}
+
+
+def _areal_units():
+    out = {}
+    for name, f in _LENGTH.items():
+        for spelling in (f"1/{name}2", f"1/{name}^2", f"1/{name}²", f"/{name}2", f"/{name}^2", f"/{name}²",
+                         f"{name}-2", f"{name}^-2"):
+            out[spelling] = 1 / f**2
+    return out
+
+
+UNITS = {
+    "m": _LENGTH,
+    "Pa": {"Pa": Decimal(1), "kPa": Decimal("1e3"), "MPa": Decimal("1e6"), "GPa": Decimal("1e9")},
+    "m-2": _areal_units(),
+}
+"""SI unit -> {accepted spelling: exact decimal factor to SI}.  Dimensionless quantities ("1") take plain numbers."""
+
+_KIND = {"m": "length", "Pa": "stress", "m-2": "areal density", "1": "dimensionless"}
+_SHOWN = {"m": "nm, um (µm), mm, cm, m", "Pa": "Pa, kPa, MPa, GPa", "m-2": "1/m2, 1/mm2, 1/um2 (or m-2, mm-2, ...)"}
+_QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+
+
+def parse_quantity(value, si_unit: str, name: str = "value") -> float:
+    """A TOML value as a float in SI.
+
+    ``value`` is a plain number (already SI) or a string ``"<number> <unit>"`` with a unit
+    of the dimension of ``si_unit`` ("m", "Pa", "m-2"); ``si_unit = "1"`` takes plain numbers only.
+    """
+    if isinstance(value, bool):
+        raise SceneError(f"{name} = {value!r} is not a number")
+    if isinstance(value, numbers.Real):
+        v = float(value)
+        if not math.isfinite(v):
+            raise SceneError(f"{name} = {value!r} is not finite")
+        return v
+    if not isinstance(value, str):
+        raise SceneError(f"{name} = {value!r} is not a number or a quantity string such as \"50 um\"")
+    if si_unit == "1":
+        key = name.rsplit(" ", 1)[-1]
+        raise SceneError(f"{name} = {value!r}: {key} is dimensionless, write a plain number (e.g. {key} = 0.5)")
+    units = UNITS[si_unit]
+    m = _QUANTITY.match(value)
+    if not m:
+        raise SceneError(f"{name} = {value!r} is not a quantity (write \"<number> <unit>\", "
+                         f"{_KIND[si_unit]} units: {_SHOWN[si_unit]})")
+    number, unit = m.groups()
+    if not unit:
+        raise SceneError(f"{name} = {value!r} has no unit (write e.g. \"{number} {next(iter(_example(si_unit)))}\", "
+                         f"or a plain number in {si_unit})")
+    if unit not in units:
+        other = [_KIND[u] for u, table in UNITS.items() if unit in table]
+        what = f"{unit!r} is a{'n' if other and other[0][0] in 'aeiou' else ''} {other[0]} unit" if other \
+            else f"unknown unit {unit!r}"
+        raise SceneError(f"{name} = {value!r}: {what}; a {_KIND[si_unit]} is needed (valid: {_SHOWN[si_unit]})")
+    v = float(Decimal(number) * units[unit])  # exact decimal product: "15 um" is the float 15e-6
+    if not math.isfinite(v):
+        raise SceneError(f"{name} = {value!r} is not finite")
+    return v
+
+
+def _example(si_unit):
+    return {"m": ("um",), "Pa": ("MPa",), "m-2": ("1/mm2",)}[si_unit]
+
+
+def format_quantity(value: float, si_unit: str) -> str:
+    """A readable quantity string that :func:`parse_quantity` reads back (e.g. ``"50 um"``)."""
+    choices = {"m": (("nm", 1e-9), ("um", 1e-6), ("mm", 1e-3), ("m", 1.0)),
+               "Pa": (("Pa", 1.0), ("kPa", 1e3), ("MPa", 1e6), ("GPa", 1e9)),
+               "m-2": (("1/m2", 1.0), ("1/mm2", 1e6), ("1/um2", 1e12))}.get(si_unit)
+    if choices is None:
+        return f"{value:.6g}"
+    name, f = choices[0]
+    for cand, cf in choices:
+        if abs(value) >= cf:
+            name, f = cand, cf
+    return f"{value / f:.6g} {name}"
+
+
+# -- structure checks ----------------------------------------------------------
+
+def check_keys(table: dict, allowed, where: str):
+    """Raise for a key of ``table`` not in ``allowed``, suggesting the closest valid one."""
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, list(allowed), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise SceneError(f"{where}unknown key {key!r} (valid: {', '.join(allowed)}){hint}")
+
+
+def _table(data: dict, key: str, where: str, required=False) -> dict:
+    if key not in data:
+        if required:
+            raise SceneError(f"{where}missing [{key}] table")
+        return {}
+    value = data[key]
+    if not isinstance(value, dict):
+        raise SceneError(f"{where}{key} must be a table [{key}], got {value!r}")
+    return value
+
+
+def _int(value, name, lo, hi=None):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo or (hi is not None and value > hi):
+        rng = f"integer >= {lo}" if hi is None else f"integer in [{lo}, {hi}]"
+        raise SceneError(f"{name} = {value!r} is out of range (valid range: {rng})")
+    return int(value)
+
+
+def _choice(value, name, valid):
+    if value not in valid:
+        raise SceneError(f"{name} = {value!r} is not known (valid: {', '.join(valid)})")
+    return value
+
+
+def _string(value, name):
+    if not isinstance(value, str):
+        raise SceneError(f"{name} = {value!r} must be a string")
+    return value
+
+
+def read_toml(path) -> dict:
+    """Parse a TOML file, with a one-line error naming the file."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise SceneError(f"{path}: is a folder, not a TOML file") from None
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"{path}: not valid TOML: {err}") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{path}: not a text (UTF-8 TOML) file") from None
+
+
+# -- the scene -------------------------------------------------------------------
+
+_TOP = ("title", "parameters", "run", "output", "path")
+_RUN = {"n": 100_000, "seed": 0, "sampler": "random", "law": "paper", "policy": "follow", "k": 16}
+_OUTPUT = ("file", "snapshots")
+_PATH = ("name", "stages")
+_COMPONENTS = ("Delta_1", "Delta_2", "Delta_3", "sigma_1", "sigma_2", "sigma_3")
+_STAGE = ("name", "increments", "adaptive", "max_fraction") + _COMPONENTS
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One run: parameters, load path and run settings, as read from a scene file.
+
+    ``simulate(**overrides)`` runs it; ``run_kwargs()`` gives the keyword arguments of
+    :func:`asperity_sim.simulate` other than params and path.
+    """
+
+    params: InterfaceParams
+    path: paths.LoadPath
+    n: int = _RUN["n"]
+    seed: int = _RUN["seed"]
+    sampler: str = _RUN["sampler"]
+    law: str = _RUN["law"]
+    policy: str = _RUN["policy"]
+    k: int = _RUN["k"]
+    output: Path | None = None
+    snapshots: object = None
+    title: str = ""
+    preset: str | None = None
+    source: str = "<scene>"
+
+    def replace(self, **changes) -> "Scene":
+        """A copy with some fields changed (``n``, ``seed``, ``params``, ``path``, ...)."""
+        return dataclasses.replace(self, **changes)
+
+    def run_kwargs(self) -> dict:
+        return {"n": self.n, "seed": self.seed, "sampler": self.sampler, "law": self.law, "policy": self.policy,
+                "k": self.k, "snapshots": self.snapshots}
+
+    def simulate(self, **overrides):
+        """``asperity_sim.simulate(self.params, self.path, **run_kwargs)``, with keyword overrides."""
+        from .driver import simulate
+
+        return simulate(self.params, self.path, **{**self.run_kwargs(), **overrides})
+
+    @property
+    def name(self) -> str:
+        return Path(self.source).stem if self.source != "<scene>" else "scene"
+
+    def default_output(self) -> Path:
+        """``[output] file`` or ``<scene name>.nc`` in the current directory."""
+        return self.output if self.output is not None else Path(f"{self.name}.nc")
+
+
+def load_scene(path) -> Scene:
+    """Read and check a scene file; raises :class:`SceneError` with a one-line message."""
+    return scene_from_dict(read_toml(path), source=str(path))
+
+
+def scene_from_dict(data: dict, source: str = "<scene>", name: str | None = None) -> Scene:
+    """A checked :class:`Scene` from a parsed TOML document.
+
+    source : where the document came from (starts every error message)
+    name : label of the path when ``[path] name`` is not given (default: the file name of source)
+    """
+    where = f"{source}: "
+    if "sweep" in data:
+        raise SceneError(f"{where}has a [sweep] table: it is a sweep file, run it with `asperity-sim sweep`")
+    check_keys(data, _TOP, where)
+    title = _string(data.get("title", ""), f"{where}title")
+    params, preset = parameters_from_table(_table(data, "parameters", where, required=True), f"{where}[parameters] ")
+    run = _run_settings(_table(data, "run", where), f"{where}[run] ")
+    output, snapshots = _output(_table(data, "output", where), f"{where}[output] ")
+    if name is None:
+        name = Path(source).stem if source != "<scene>" else "scene"
+    path = path_from_table(_table(data, "path", where, required=True), f"{where}[path] ", default_name=name)
+    return Scene(params=params, path=path, output=output, snapshots=snapshots, title=title, preset=preset,
+                 source=source, **run)
+
+
+def parameters_from_table(table: dict, where: str = "") -> tuple[InterfaceParams, str | None]:
+    """InterfaceParams from ``preset`` plus overrides with units (SPEC §1 ranges apply)."""
+    units = InterfaceParams.units()
+    check_keys(table, ("preset",) + tuple(units), where)
+    preset = table.get("preset")
+    values = {}
+    for name, value in table.items():
+        if name != "preset":
+            values[name] = parse_quantity(value, units[name], f"{where}{name}")
+    try:
+        if preset is None:
+            required = [f.name for f in dataclasses.fields(InterfaceParams)
+                        if f.default is dataclasses.MISSING and f.name not in values]
+            if required:
+                raise SceneError(f"{where}missing preset (valid: {', '.join(presets.TABLE1)}) "
+                                 f"or the parameters {', '.join(required)}")
+            return InterfaceParams(**values), None
+        _choice(preset, f"{where}preset", tuple(presets.TABLE1))
+        return presets.TABLE1[preset].replace(**values), preset
+    except SceneError:
+        raise
+    except ValueError as err:
+        raise SceneError(f"{where}{err}") from None
+
+
+def _run_settings(table: dict, where: str) -> dict:
+    from .assemble import LAWS, POLICIES
+    from .population import N_MAX, SAMPLERS
+
+    check_keys(table, tuple(_RUN), where)
+    out = {**_RUN, **table}
+    out["n"] = _int(out["n"], f"{where}n", 1, N_MAX)
+    out["seed"] = _int(out["seed"], f"{where}seed", 0)
+    out["k"] = _int(out["k"], f"{where}k", 1, 4096)
+    out["sampler"] = _choice(out["sampler"], f"{where}sampler", SAMPLERS)
+    out["law"] = _choice(out["law"], f"{where}law", LAWS)
+    out["policy"] = _choice(out["policy"], f"{where}policy", POLICIES)
+    return out
+
+
+def _output(table: dict, where: str):
+    check_keys(table, _OUTPUT, where)
+    output = table.get("file")
+    if output is not None:
+        output = Path(_string(output, f"{where}file"))
+        if output.suffix not in (".nc", ".nc4"):
+            raise SceneError(f"{where}file = {str(output)!r} must end in .nc (a netCDF file)")
+    snapshots = table.get("snapshots")
+    if snapshots is not None and snapshots != "stage_ends":
+        if not isinstance(snapshots, list):
+            raise SceneError(f"{where}snapshots = {snapshots!r} must be \"stage_ends\" or a list of step numbers")
+        snapshots = tuple(_int(s, f"{where}snapshots step", 0) for s in snapshots)
+    return output, snapshots
+
+
+def path_from_table(table: dict, where: str = "", default_name: str = "scene") -> paths.LoadPath:
+    """A LoadPath from ``name`` and a list of stage tables (``Delta_k`` [length] or ``sigma_k`` [stress])."""
+    check_keys(table, _PATH, where)
+    name = _string(table.get("name", default_name), f"{where}name")
+    stages = table.get("stages")
+    if stages is None:
+        raise SceneError(f"{where}missing stages (add one [[path.stages]] table per stage)")
+    if not isinstance(stages, list) or not stages or not all(isinstance(s, dict) for s in stages):
+        raise SceneError(f"{where}stages must be one or more [[path.stages]] tables")
+    return paths.LoadPath(tuple(_stage(s, f"{where}stage {i}: ") for i, s in enumerate(stages, 1)), name=name)
+
+
+def _stage(table: dict, where: str) -> paths.Stage:
+    check_keys(table, _STAGE, where)
+    control, target = [], []
+    for k in (1, 2, 3):
+        d, s = f"Delta_{k}", f"sigma_{k}"
+        if d in table and s in table:
+            raise SceneError(f"{where}give {d} (displacement control) or {s} (stress control), not both")
+        if d in table:
+            control.append(paths.DISPLACEMENT)
+            target.append(parse_quantity(table[d], "m", f"{where}{d}"))
+        elif s in table:
+            control.append(paths.STRESS)
+            target.append(parse_quantity(table[s], "Pa", f"{where}{s}"))
+            if k == 1 and target[-1] < 0.0:
+                raise SceneError(f"{where}{s} = {table[s]!r} is a tension, which the interface cannot carry "
+                                 "(valid range: sigma_1 >= 0, compression positive)")
+        else:
+            raise SceneError(f"{where}component {k} is missing: give {d} = \"<length>\" (displacement control) "
+                             f"or {s} = \"<stress>\" (stress control)")
+    if "increments" not in table:
+        raise SceneError(f"{where}missing increments (integer >= 1)")
+    increments = _int(table["increments"], f"{where}increments", 1, 10**7)
+    try:
+        return paths.Stage(tuple(control), tuple(target), increments,
+                           adaptive=table.get("adaptive", False), max_fraction=table.get("max_fraction", 0.1),
+                           name=_string(table.get("name", ""), f"{where}name"))
+    except ValueError as err:
+        raise SceneError(f"{where}{err}") from None
+
+
+def scale_increments(path: paths.LoadPath, increments: int) -> paths.LoadPath:
+    """The path with its largest stage at ``increments`` increments and the others in proportion (at least 1)."""
+    largest = max(s.increments for s in path.stages)
+    stages = tuple(dataclasses.replace(s, increments=max(1, int(s.increments * increments / largest)))
+                   for s in path.stages)
+    return paths.LoadPath(stages, name=path.name)

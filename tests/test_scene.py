@@ -1,0 +1,157 @@
+"""Scene files: unit parsing, the shipped scenes, and broken files giving one clear error."""
+
+from pathlib import Path
+
+import pytest
+
+from asperity_sim import paths, presets
+from asperity_sim.scene import (SceneError, format_quantity, load_scene, parse_quantity, scale_increments,
+                                scene_from_dict)
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+SHIPPED = sorted(p for p in SCENARIOS.glob("*.toml") if not p.name.startswith("sweep_"))
+
+
+@pytest.mark.parametrize("text, unit, expected", [
+    ("50 um", "m", 50e-6), ("50um", "m", 50e-6), ("50 µm", "m", 50e-6), ("50 μm", "m", 50e-6),
+    ("15 um", "m", 15e-6), ("3.52 um", "m", 3.52e-6), ("0.1 mm", "m", 0.1e-3), ("2 cm", "m", 0.02),
+    ("1.5e3 nm", "m", 1.5e-6), ("-3 um", "m", -3e-6), ("1 m", "m", 1.0), (" 8.82 mm ", "m", 8.82e-3),
+    ("500 MPa", "Pa", 500e6), ("80 GPa", "Pa", 80e9), ("0.5 kPa", "Pa", 500.0), ("12 Pa", "Pa", 12.0),
+    ("200 /mm2", "m-2", 200e6), ("200 1/mm^2", "m-2", 200e6), ("2e8 m-2", "m-2", 2e8), ("0.2 1/um2", "m-2", 0.2e12),
+    (15e-6, "m", 15e-6), (500000000, "Pa", 5e8), (0.6, "1", 0.6), (1, "1", 1.0),
+])
+def test_valid_quantities_are_exact_in_si(text, unit, expected):
+    assert parse_quantity(text, unit, "x") == expected  # exact: "15 um" is the float 15e-6
+
+
+@pytest.mark.parametrize("value, unit, message", [
+    ("500 MPA", "Pa", "unknown unit 'MPA'; a stress is needed (valid: Pa, kPa, MPa, GPa)"),
+    ("10 MPa", "m", "'MPa' is a stress unit; a length is needed"),
+    ("10 um", "Pa", "'um' is a length unit; a stress is needed"),
+    ("15 furlongs", "m", "unknown unit 'furlongs'"),
+    ("15", "m", "has no unit"),
+    ("fifteen um", "m", "is not a quantity"),
+    ("0.6 MPa", "1", "x is dimensionless, write a plain number"),
+    (True, "m", "is not a number"),
+    ([1, 2], "m", "is not a number or a quantity string"),
+    (float("nan"), "m", "is not finite"),
+    ("1e400 um", "m", "is not finite"),
+])
+def test_invalid_quantities_name_value_and_valid_units(value, unit, message):
+    with pytest.raises(SceneError, match="^x = ") as err:
+        parse_quantity(value, unit, "x")
+    assert message in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("value, unit", [(50e-6, "m"), (3.52e-6, "m"), (8.82e-3, "m"), (500e6, "Pa"), (80e9, "Pa"),
+                                         (200e6, "m-2")])
+def test_format_quantity_reads_back(value, unit):
+    assert parse_quantity(format_quantity(value, unit), unit) == pytest.approx(value, rel=1e-12)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
+def test_shipped_scenes_load_and_use_table1(path):
+    scene = load_scene(path)
+    assert scene.params == presets.TABLE1[scene.preset]
+    assert scene.n == 200_000 and scene.seed == 2024 and scene.law == "paper" and scene.policy == "follow"
+    assert scene.title
+
+
+def test_shipped_scenes_are_the_papers_paths():
+    assert load_scene(SCENARIOS / "three_step_R1.toml").path == paths.three_step(15e-6, 30)
+    assert load_scene(SCENARIOS / "three_step_S1.toml").path == paths.three_step(6e-6, 30)
+    shear = load_scene(SCENARIOS / "constant_normal_shear_S1.toml").path
+    assert [s.control for s in shear.stages] == [("stress", "displacement", "displacement")] * 3
+    assert [s.target for s in shear.stages] == [(500e6, 0.0, 0.0), (500e6, 10e-6, 0.0), (500e6, 50e-6, 0.0)]
+    closure = load_scene(SCENARIOS / "normal_closure_R2.toml").path
+    assert [s.target[0] for s in closure.stages] == [0.5e6, 5e6, 50e6]
+
+
+def _scene(**tables):
+    base = {"parameters": {"preset": "S1"},
+            "path": {"stages": [{"increments": 3, "Delta_1": "2 um", "Delta_2": "0 um", "Delta_3": "0 um"}]}}
+    base.update(tables)
+    return base
+
+
+def test_overrides_with_units_and_defaults():
+    scene = scene_from_dict(_scene(parameters={"preset": "R1", "R_m": "40 um", "mu": 0.6, "G": "70 GPa",
+                                               "N": "100 /mm2"}), source="t.toml")
+    assert scene.params == presets.R1.replace(R_m=40e-6, mu=0.6, G=70e9, N=100e6)
+    assert (scene.n, scene.seed, scene.sampler, scene.law, scene.policy, scene.k) == (100_000, 0, "random", "paper",
+                                                                                      "follow", 16)
+    assert scene.output is None and scene.default_output() == Path("t.nc")
+    assert scene.path.name == "t"
+
+
+def test_full_parameter_set_without_preset():
+    table = {k: v for k, v in presets.S2.as_dict().items()}
+    assert scene_from_dict(_scene(parameters=table)).params == presets.S2
+
+
+BROKEN = {
+    "missing parameters": ({"parameters": None}, "missing [parameters] table"),
+    "missing preset": ({"parameters": {"mu": 0.5}}, "missing preset (valid: R1, S1, R2, S2) or the parameters N"),
+    "unknown preset": ({"parameters": {"preset": "R3"}}, "preset = 'R3' is not known (valid: R1, S1, R2, S2)"),
+    "negative radius": ({"parameters": {"preset": "R1", "R_m": "-50 um"}},
+                        "R_m = -5e-05 is out of range (valid range: > 0)"),
+    "negative friction": ({"parameters": {"preset": "R1", "mu": -0.1}}, "mu = -0.1 is out of range (valid range: >= 0)"),
+    "unknown parameter": ({"parameters": {"preset": "R1", "Rm": "50 um"}}, "unknown key 'Rm' (valid: preset, N"),
+    "wrong unit": ({"parameters": {"preset": "R1", "G": "80 um"}}, "'um' is a length unit; a stress is needed"),
+    "sweep file": ({"sweep": {"replicas": 2}}, "it is a sweep file, run it with `asperity-sim sweep`"),
+    "unknown top key": ({"stages": []}, "unknown key 'stages' (valid: title, parameters, run, output, path)"),
+    "misspelt run key": ({"run": {"sede": 1}}, "did you mean 'seed'?"),
+    "negative n": ({"run": {"n": -5}}, "n = -5 is out of range"),
+    "float n": ({"run": {"n": 1.5}}, "n = 1.5 is out of range"),
+    "negative seed": ({"run": {"seed": -1}}, "seed = -1 is out of range (valid range: integer >= 0)"),
+    "unknown law": ({"run": {"law": "hertz"}}, "law = 'hertz' is not known (valid: paper, mdr)"),
+    "unknown sampler": ({"run": {"sampler": "lhs"}}, "sampler = 'lhs' is not known (valid: random, sobol)"),
+    "output not netcdf": ({"output": {"file": "run.txt"}}, "file = 'run.txt' must end in .nc"),
+    "bad snapshots": ({"output": {"snapshots": "all"}}, "snapshots = 'all' must be \"stage_ends\" or a list"),
+    "missing path": ({"path": None}, "missing [path] table"),
+    "missing stages": ({"path": {"name": "x"}}, "missing stages"),
+    "empty stages": ({"path": {"stages": []}}, "stages must be one or more [[path.stages]] tables"),
+    "missing component": ({"path": {"stages": [{"increments": 3, "Delta_1": "2 um", "Delta_2": "0 um"}]}},
+                          "stage 1: component 3 is missing: give Delta_3"),
+    "both controls": ({"path": {"stages": [{"increments": 3, "Delta_1": "2 um", "sigma_1": "1 MPa", "Delta_2": 0,
+                                            "Delta_3": 0}]}}, "give Delta_1 (displacement control) or sigma_1"),
+    "missing increments": ({"path": {"stages": [{"Delta_1": "2 um", "Delta_2": 0, "Delta_3": 0}]}},
+                           "stage 1: missing increments"),
+    "zero increments": ({"path": {"stages": [{"increments": 0, "Delta_1": "2 um", "Delta_2": 0, "Delta_3": 0}]}},
+                        "increments = 0 is out of range"),
+    "tension": ({"path": {"stages": [{"increments": 2, "sigma_1": "-5 MPa", "Delta_2": 0, "Delta_3": 0}]}},
+                "is a tension, which the interface cannot carry"),
+    "stage length as stress": ({"path": {"stages": [{"increments": 2, "sigma_1": "5 um", "Delta_2": 0,
+                                                     "Delta_3": 0}]}}, "'um' is a length unit; a stress is needed"),
+    "unknown stage key": ({"path": {"stages": [{"increments": 2, "Delta_1": 0, "Delta_2": 0, "Delta_3": 0,
+                                                "Delta_4": 0}]}}, "stage 1: unknown key 'Delta_4'"),
+    "bad max_fraction": ({"path": {"stages": [{"increments": 2, "Delta_1": 0, "Delta_2": 0, "Delta_3": 0,
+                                               "adaptive": True, "max_fraction": 2.0}]}}, "max_fraction = 2.0"),
+}
+
+
+@pytest.mark.parametrize("case", BROKEN)
+def test_broken_scene_gives_one_line_naming_file_and_key(case):
+    change, message = BROKEN[case]
+    data = _scene(**change)
+    data = {k: v for k, v in data.items() if v is not None}
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(data, source="broken.toml")
+    text = str(err.value)
+    assert text.startswith("broken.toml: ") and message in text and "\n" not in text
+
+
+def test_file_errors(tmp_path):
+    with pytest.raises(SceneError, match="no such file"):
+        load_scene(tmp_path / "absent.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[parameters\npreset = 'R1'\n")
+    with pytest.raises(SceneError, match=r"bad.toml: not valid TOML: .*line 1"):
+        load_scene(bad)
+
+
+def test_scale_increments_keeps_proportions():
+    path = load_scene(SCENARIOS / "normal_closure_S2.toml").path
+    assert [s.increments for s in scale_increments(path, 4).stages] == [1, 1, 4]
+    assert [s.increments for s in scale_increments(path, 80).stages] == [20, 20, 80]
