@@ -156,7 +156,8 @@ def plot_run(ds):
     for ax in axes.ravel():
         ax.set_xlabel(r"path length $\int|d\Delta|$ [µm]")
         _stage_marks(ax, ds, x)
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[1]:
+            ax.legend(fontsize=8)
     fig.suptitle(ds.attrs.get("title", "asperity_sim run"))
     fig.tight_layout()
     return fig
