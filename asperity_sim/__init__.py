@@ -1,7 +1,8 @@
 """asperity_sim: Monte Carlo simulator of rough interfaces (Misra & Huang; see SPEC.md).
 
 Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Population`` with
-``evaluate``, load ``paths``, ``simulate`` and the quadrature ``reference``.
+``evaluate``, load ``paths``, ``simulate`` (and ``resume`` from a checkpoint) and the quadrature
+``reference``.
 """
 
 __version__ = "0.1.0"
@@ -9,12 +10,15 @@ __version__ = "0.1.0"
 from . import paths, presets, reference
 from .params import InterfaceParams
 from .population import Population
-from .driver import ConvergenceError, SimulationError, StressNotReachableError, simulate
+from .driver import (ConvergenceError, SimulationError, StressNotReachableError, WallTimeExceededError, resume,
+                     simulate)
+from .checkpoint import CheckpointError
 from .solver import SolverSettings
 from .single import single_contact
 
 __all__ = [
-    "InterfaceParams", "presets", "Population", "paths", "simulate", "single_contact", "reference",
+    "InterfaceParams", "presets", "Population", "paths", "simulate", "resume", "single_contact", "reference",
     "SolverSettings",
-    "SimulationError", "StressNotReachableError", "ConvergenceError", "__version__",
+    "SimulationError", "StressNotReachableError", "ConvergenceError", "WallTimeExceededError", "CheckpointError",
+    "__version__",
 ]

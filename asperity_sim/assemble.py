@@ -6,6 +6,14 @@ asperities that can touch (the population is sorted by height) in fixed-size chu
 under ``prange``; each chunk writes its partial sums to its own row of a caller-owned
 array, so the result does not depend on the number of threads.
 
+Speed (``paper`` law, issue 5): an asperity above the closure is dropped before any
+trigonometry when it cannot touch at the largest angle in use (:func:`cannot_touch`) or,
+under policy follow, at its own largest angle (:func:`cannot_touch_follow`, from
+cos theta_m = 1 - k_e c / R alone); d theta / d Delta_1 is computed for contacts only;
+chunks go to the threads in a strided order (:func:`chunk_stride`) so that both threads get
+low (costly, in contact) and high (cheap) heights; small workloads run on the calling
+thread (:func:`assemble_paper_serial`).  None of this changes a result.
+
 Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
 Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
 
@@ -27,6 +35,7 @@ from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
 
 CHUNK = 2048
+SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) the paper kernel runs serially
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
 I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
@@ -123,44 +132,170 @@ def closure_and_slope(r_o, d1):
     return closure, 1.0
 
 
+@numba.njit(cache=True, inline="always")
+def cannot_touch(x, shear_ph, tan_max):
+    """True when delta_n = cos(theta) x + sin(theta) shear_ph <= 0 for every theta in [0, theta_max].
+
+    ``x`` = Delta_1 - r, ``shear_ph`` = cos(phi) Delta_2 + sin(phi) Delta_3 and ``tan_max`` =
+    tan(theta_max) (inf for theta_max = pi/2).  Above the closure (x <= 0) contact needs
+    shear_ph > 0 and tan(theta) > -x / shear_ph; the relative margin 1e-9 keeps the test on the
+    safe side of round-off, so a skipped asperity is one the exact test also finds out of contact.
+    """
+    if x > 0.0:
+        return False
+    if shear_ph <= 0.0:
+        return True
+    return -x > shear_ph * tan_max * (1.0 + 1e-9)
+
+
+@numba.njit(cache=True, inline="always")
+def cannot_touch_follow(x, shear_ph, y, scale):
+    """True when asperity j cannot touch under policy follow, tested without trigonometry.
+
+    ``y`` = cos(theta_m(c, R_j)) = 1 - k_e c / R_j (Eq. 9, before clipping) and ``scale`` =
+    2 u_j / pi, so theta = scale theta_m.  tan is convex on [0, pi/2) with tan 0 = 0, hence
+    tan(theta) <= scale tan(theta_m); above the closure (x <= 0, shear_ph > 0) contact needs
+    tan(theta) > -x / shear_ph, impossible when scale² (1 - y²) shear_ph² < x² y² (y > 0).
+    The relative margin 1e-9 keeps the test on the safe side of round-off.
+    """
+    if x > 0.0:
+        return False
+    if shear_ph <= 0.0:
+        return True
+    if y <= 0.0:
+        return False  # theta_m = pi/2: no bound
+    if y >= 1.0:
+        return True  # theta_m = 0: delta_n = x <= 0
+    return scale * scale * (1.0 - y * y) * shear_ph * shear_ph * (1.0 + 1e-9) < x * x * y * y
+
+
+@numba.njit(cache=True, inline="always")
+def chunk_stride(n_chunks):
+    """A stride g coprime with n_chunks, near n_chunks / golden ratio.
+
+    Chunk ic = (k g) mod n_chunks for k = 0 .. n_chunks-1 visits every chunk once and spreads
+    the chunks of each thread's contiguous block of k over the whole height range.  The
+    population is sorted by height, so contiguous blocks would give one thread all the
+    contacts (low heights) and the other the cheap skipped asperities.  Each chunk still
+    writes its own row, so the result does not depend on the threads.
+    """
+    g = max(1, int(0.6180339887498949 * n_chunks))
+    while True:
+        a, b = g, n_chunks
+        while b:
+            a, b = b, a % b
+        if a == 1:
+            return g
+        g -= 1
+
+
+@numba.njit(cache=True, inline="always")
+def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                theta_birth, has_birth, tan_max, partial):
+    """Row ic of ``partial``: the sums of :func:`accumulate` over asperities ic*CHUNK .. of chunk ic."""
+    acc = np.zeros(N_ACC)
+    J = np.zeros((3, 3))
+    for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+        cp, sp = cos_phi[j], sin_phi[j]
+        x = d1 - r[j]
+        if cannot_touch(x, cp * d2 + sp * d3, tan_max):
+            continue
+        inv_R = 1.0 / R[j]
+        y = 1.0  # cos(theta_m) under policy follow; unused under birth
+        if has_birth:
+            th, th1 = contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+        else:
+            # asperity_theta without the slope (needed for contacts only, below)
+            y = 1.0 - k_e * closure * inv_R
+            if cannot_touch_follow(x, cp * d2 + sp * d3, y, u[j] / (0.5 * math.pi)):
+                continue
+            if y >= 1.0:
+                th_m = 0.0
+            elif y <= 0.0:
+                th_m = 0.5 * math.pi
+            else:
+                th_m = math.acos(y)
+            th = u[j] / (0.5 * math.pi) * th_m
+            th1 = 0.0
+        ct, st = math.cos(th), math.sin(th)
+        dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
+        if dn <= 0.0:
+            continue
+        if not has_birth and 0.0 < y < 1.0:
+            # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
+            th1 = u[j] / (0.5 * math.pi) * (k_e * inv_R / math.sqrt((1.0 - y) * (1.0 + y))) * dc
+        f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
+            dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
+        dst = math.sqrt(ds * ds + dt * dt)
+        if dst > 0.0:
+            es, et = ds / dst, dt / dst
+        else:
+            es, et = 0.0, 0.0
+        extra = dF_dst - k_sec
+        J[0, 0] = k_n
+        J[1, 0], J[2, 0] = dF_dn * es, dF_dn * et
+        J[1, 1], J[1, 2] = k_sec + extra * es * es, extra * es * et
+        J[2, 1], J[2, 2] = extra * es * et, k_sec + extra * et * et
+        state = 3 if slip else (2 if dst > 0.0 else 1)
+        accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, state)
+        acc[20] += th
+    partial[ic, :] = acc
+
+
 @numba.njit(cache=True, parallel=True)
-def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, partial):
+def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, tan_max,
+                   partial):
     """Partial sums of forces, force products, tangents and counts for the ``paper`` law.
 
     ``theta_birth`` is empty (policy follow) or holds, per asperity, the frozen angle of a
-    committed contact and NaN elsewhere (policy birth).  ``partial`` has shape
-    (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
+    committed contact and NaN elsewhere (policy birth).  ``tan_max`` is tan of an upper
+    bound of every angle in use (:func:`angle_bound`): an asperity above the closure that
+    cannot touch at that angle is skipped before any trigonometry (:func:`cannot_touch`;
+    under policy follow also :func:`cannot_touch_follow`, per asperity).  Under policy
+    follow the slope d theta / d Delta_1 is computed for contacts only.  ``partial`` has
+    shape (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
+    Chunks are handed to the threads in the order of :func:`chunk_stride`.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
     n_chunks = (n_active + CHUNK - 1) // CHUNK
-    for ic in numba.prange(n_chunks):
-        acc = np.zeros(N_ACC)
-        J = np.zeros((3, 3))
-        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
-            cp, sp = cos_phi[j], sin_phi[j]
-            th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
-            ct, st = math.cos(th), math.sin(th)
-            dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
-            if dn <= 0.0:
-                continue
-            f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
-                dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
-            dst = math.sqrt(ds * ds + dt * dt)
-            if dst > 0.0:
-                es, et = ds / dst, dt / dst
-            else:
-                es, et = 0.0, 0.0
-            extra = dF_dst - k_sec
-            J[0, 0] = k_n
-            J[1, 0], J[2, 0] = dF_dn * es, dF_dn * et
-            J[1, 1], J[1, 2] = k_sec + extra * es * es, extra * es * et
-            J[2, 1], J[2, 2] = extra * es * et, k_sec + extra * et * et
-            state = 3 if slip else (2 if dst > 0.0 else 1)
-            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, state)
-            acc[20] += th
-        partial[ic, :] = acc
+    stride = chunk_stride(n_chunks)
+    for k in numba.prange(n_chunks):
+        paper_chunk((k * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e,
+                    E_star, lam, mu, theta_birth, has_birth, tan_max, partial)
+
+
+@numba.njit(cache=True)
+def assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth,
+                          tan_max, partial):
+    """:func:`assemble_paper` on the calling thread (same rows, so the same result).
+
+    For small workloads: a parallel region costs tens of microseconds on an idle machine and
+    milliseconds when other processes hold the cores (threads wait to be scheduled).
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    for ic in range((n_active + CHUNK - 1) // CHUNK):
+        paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                    theta_birth, has_birth, tan_max, partial)
+
+
+def angle_bound(pop, delta, theta_max=0.0) -> float:
+    """Upper bound [rad] of every contact angle at delta: theta_m(c, R_min) or a frozen angle.
+
+    The same bound as :meth:`Population.n_reachable` (SPEC §3): under policy follow
+    theta = (2/pi) u theta_m(c, R) <= theta_m(c, R_min); ``theta_max`` covers frozen angles.
+    """
+    closure = max(0.0, pop.params.r_o + delta[0])
+    y = 1.0 - pop.params.k_e * closure / pop.R_min
+    return max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
+
+
+def tan_bound(theta: float) -> float:
+    """tan(theta) for theta < pi/2 (up to 1e-9), else inf."""
+    return math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
 
 
 @numba.njit(cache=True, inline="always")
@@ -321,8 +456,10 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     n_active = pop.n_reachable(d, theta_max)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     if law == "paper":
-        assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
-                       p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, ws.partial)
+        tan_max = tan_bound(angle_bound(pop, d, theta_max))
+        kernel = assemble_paper if n_chunks > SERIAL_CHUNKS else assemble_paper_serial
+        kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
+               p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, tan_max, ws.partial)
     else:
         if history is None:
             from .state import MDRHistory
@@ -341,9 +478,11 @@ def _finish(pop, d, s, n_active) -> Evaluation:
     sum_f = s[I_F:I_F + 3]
     cov = np.zeros((3, 3))
     if n > 1:
-        # covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n
+        # covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n = (N w)² n C_f
+        # (numpy floats, in this order: a huge N w gives inf, never an OverflowError, and 0 stays 0)
+        scale64 = np.float64(scale)
         for (i, j), sum_ff in zip(_FF_PAIRS, s[I_FF:I_FF + 6]):
-            cov[i, j] = cov[j, i] = (sum_ff - sum_f[i] * sum_f[j] / n) / (n - 1) * (scale * n) ** 2 / n
+            cov[i, j] = cov[j, i] = (sum_ff - sum_f[i] * sum_f[j] / n) / (n - 1) * scale64 * scale64 * n
     stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
     n_contact = int(round(s[I_NC]))
     return Evaluation(

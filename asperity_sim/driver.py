@@ -5,21 +5,31 @@ solve (:mod:`asperity_sim.solver`), then commit (birth angles under policy ``bir
 record.  The loop runs inside ``try/finally`` so what converged is always kept: on
 failure the exception carries the partial dataset (and it is written if an output
 file was asked for).
+
+Every input is checked before any work.  A run stops only with a named
+:class:`SimulationError` that says why (a stress the interface cannot carry, an increment
+that does not converge after every cut-back, the wall-time limit), never with NaN.  The
+whole state of a run (:class:`_Run`) can be checkpointed at chosen steps and resumed
+bit-identically (:mod:`asperity_sim.checkpoint`, :func:`resume`).
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import numbers
 import os
 import time
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import __version__
-from .assemble import LAWS, POLICIES, Workspace, birth_angles, check_choice, evaluate, snapshot
-from .params import InterfaceParams
-from .paths import LoadPath
-from .population import SAMPLERS, Population
+from . import checkpoint as ckpt
+from .assemble import LAWS, POLICIES, Evaluation, Workspace, birth_angles, check_choice, evaluate, snapshot
+from .params import InterfaceParams, check_real
+from .paths import LoadPath, Stage
+from .population import N_MAX, SAMPLERS, Population
 from .recorder import Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
 from .state import MDRHistory
@@ -42,6 +52,10 @@ class ConvergenceError(SimulationError):
     """An increment did not converge even after the largest number of cut-backs."""
 
 
+class WallTimeExceededError(SimulationError):
+    """The run took longer than its ``max_wall_time``; ``.dataset`` holds every converged increment."""
+
+
 def _theta_am(params, closure):
     from .reference import theta_am
 
@@ -51,27 +65,45 @@ def _theta_am(params, closure):
 def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
              sampler: str = "random", law: str = "paper", policy: str = "follow", *, k: int = 16,
              snapshots=None, output=None, settings: SolverSettings | None = None,
-             population: Population | None = None, progress=None):
+             population: Population | None = None, progress=None, max_wall_time: float | None = None,
+             checkpoint=None, checkpoint_every: int | None = None, resume=None):
     """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
 
     Parameters
     ----------
     params : InterfaceParams
     path : LoadPath
-    n : int, number of sampled asperities
-    seed : int or None; sampler : "random" or "sobol"
+    n : int, number of sampled asperities, in [1, 2**31 - 1]
+    seed : int >= 0 or None; sampler : "random" or "sobol"
     law : "paper" (path independent, SPEC §5) or "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
     policy : "follow" or "birth" (SPEC §3)
-    k : int, tangential springs per contact (law "mdr")
+    k : int in [1, 4096], tangential springs per contact (law "mdr")
     snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
     output : path of a netCDF file to write (atomically), also when the run fails
     settings : SolverSettings
     population : a Population to reuse instead of sampling (params, n, seed, sampler then come from it)
     progress : callable(stage, n_stages, fraction, step, iterations) called after each increment
+    max_wall_time : float > 0 [s] or None; past it the run stops with :class:`WallTimeExceededError`
+        (checked before every increment and cut-back)
+    checkpoint : path of a checkpoint file (:mod:`asperity_sim.checkpoint`) written atomically every
+        ``checkpoint_every`` converged increments (None: at the end of every stage), and when the
+        run is interrupted by an exception that is not a :class:`SimulationError`
+    checkpoint_every : int >= 1 or None
+    resume : path of a checkpoint of this same run (same parameters, path, n, seed, sampler, law,
+        policy, k, settings, snapshots and package version; anything else raises
+        :class:`~asperity_sim.checkpoint.CheckpointError`, a ``ValueError``): the run continues
+        from it and its results are bit-identical to an uninterrupted run.  :func:`resume`
+        does the same from the file alone.
 
     Returns
     -------
     xarray.Dataset with dimension ``step`` (see :mod:`asperity_sim.variables`).
+
+    Raises
+    ------
+    ValueError for invalid input (before any work); :class:`StressNotReachableError`,
+    :class:`ConvergenceError`, :class:`WallTimeExceededError` (all :class:`SimulationError`,
+    with ``.dataset``) when the run stops early.
     """
     if not isinstance(params, InterfaceParams):
         raise ValueError(f"params = {params!r} is not an InterfaceParams")
@@ -80,125 +112,424 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     check_choice("law", law, LAWS)
     check_choice("policy", policy, POLICIES)
     check_choice("sampler", sampler, SAMPLERS)
+    n = _check_int("n", n, 1, N_MAX)
+    if seed is not None:
+        seed = _check_int("seed", seed, 0, None)
+    k = _check_int("k (springs per contact)", k, 1, 4096)
     settings = SolverSettings() if settings is None else settings
     if not isinstance(settings, SolverSettings):
         raise ValueError(f"settings = {settings!r} is not a SolverSettings")
     if population is not None and not isinstance(population, Population):
         raise ValueError(f"population = {population!r} is not a Population")
-    if output is not None and not isinstance(output, (str, os.PathLike)):
-        raise ValueError(f"output = {output!r} is not a file path")
-    snap_steps, snap_stage_ends = _check_snapshots(snapshots)
+    if population is not None and population.params != params:
+        raise ValueError("population was sampled from other parameters than params")
+    output = _check_file("output", output)
+    snaps = _check_snapshots(snapshots)
     if progress is not None and not callable(progress):
         raise ValueError(f"progress = {progress!r} must be callable or None")
-    if population is None:
-        population = Population.sample(params, n, seed=seed, sampler=sampler)
-    elif population.params != params:
-        raise ValueError("population was sampled from other parameters than params")
-    pop = population
-    call = (f"asperity_sim.simulate(path={path.name}, n={pop.n}, seed={pop.seed}, sampler={pop.sampler!r}, "
-            f"law={law!r}, policy={policy!r})")
-    attrs = run_attributes(params, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law, policy=policy,
-                           path=path, version=__version__, call=call)
-    ws = Workspace(pop.n)
-    theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
-    length = (params.alpha + 1.0) * params.beta  # mean height: the natural displacement scale
-    history = MDRHistory(pop, k=k, dn_cap=_closure_cap(pop, path, ws)) if law == "mdr" else None
-    if history is not None:
-        attrs["springs_per_contact"] = history.k
+    if max_wall_time is not None:
+        max_wall_time = check_real("max_wall_time [s]", max_wall_time, 0.0, None, lo_open=True)
+    checkpoint = _check_file("checkpoint", checkpoint)
+    if checkpoint_every is not None:
+        checkpoint_every = _check_int("checkpoint_every (steps)", checkpoint_every, 1, None)
+        if checkpoint is None:
+            raise ValueError(f"checkpoint_every = {checkpoint_every} needs a checkpoint file (checkpoint = None)")
+    resume = _check_file("resume", resume)
+    loaded = None
+    if resume is not None:
+        loaded = (resume.meta, resume.arrays) if isinstance(resume, _Loaded) else ckpt.load(resume, __version__)
+        if population is not None:
+            n, seed, sampler = population.n, population.seed, population.sampler
+        wanted = ckpt.config_of(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k,
+                                settings=settings, snapshots=snaps)
+        diff = ckpt.differences(loaded[0]["config"], wanted)
+        if diff:
+            raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} belongs to another run: " + "; ".join(diff))
+    run = _Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, snaps=snaps,
+               settings=settings, population=population, loaded=loaded, resume=resume)
+    return run.go(output=output, progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint,
+                  checkpoint_every=checkpoint_every)
 
-    def evaluate_at(delta):
-        return evaluate(pop, delta, law=law, policy=policy, theta_birth=theta_birth, workspace=ws,
-                        history=history)
 
-    def take_snapshot(step, delta):
-        if history is None:
-            rec.add_snapshot(step, snapshot(pop, delta, policy, theta_birth))
-        else:
-            rec.add_snapshot(step, history.snapshot(delta, theta_birth))
+def resume(checkpoint, *, output=None, progress=None, max_wall_time: float | None = None, checkpoint_every="saved"):
+    """Continue the run saved in ``checkpoint`` from the file alone; return its complete dataset.
 
-    total = sum(s.increments for s in path.stages)
-    rec = Recorder(total + 1, STEP_VARIABLES if history is None else {**STEP_VARIABLES, **HISTORY_VARIABLES})
-    delta = np.zeros(3)
-    ev = evaluate_at(delta)
-    energy = {"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, "coarsenings": 0,
-              "transitions": np.zeros((4, 4), dtype=np.int64)} if history is not None else {}
-    _record(rec, params, ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0, cutbacks=0,
-            **energy)
-    if 0 in snap_steps:
-        take_snapshot(0, delta)
-    failure = None
-    interrupted = None
-    t0 = time.perf_counter()
+    Parameters, load path, population, solver settings and state all come from the
+    checkpoint; the run goes on checkpointing to the same file every ``checkpoint_every``
+    steps (default: as the interrupted run did; None: at stage ends).  ``output``,
+    ``progress`` and ``max_wall_time`` as in :func:`simulate`.  The result is bit-identical
+    to an uninterrupted run (only the wall time and the history attribute differ).
+    """
+    checkpoint = _check_file("checkpoint", checkpoint)
+    if checkpoint is None:
+        raise ValueError("checkpoint = None is not valid: name the checkpoint file to resume from (str or os.PathLike)")
+    meta, arrays = ckpt.load(checkpoint, __version__)
+    cfg = meta["config"]
     try:
-        for i_stage, stage in enumerate(path.stages, 1):
-            free = stage.stress_controlled
-            start_delta, start_stress = delta.copy(), ev.stress.copy()
-            end = np.asarray(stage.target, dtype=float)
-            k_start = None  # stiffness of the ramped stress directions after the first increment
-            nominal = 1.0 / stage.increments
-            smallest = nominal * 0.5 ** settings.max_cutbacks
-            s, ds, cuts = 0.0, nominal, 0
-            while s < 1.0 - 1e-12:
-                ds = min(ds, 1.0 - s)
-                s_new = 1.0 if s + ds > 1.0 - 1e-12 else s + ds
-                target_delta = np.where(free, delta, start_delta + s_new * (end - start_delta))
-                target_stress = np.where(free, start_stress + s_new * (end - start_stress), 0.0)
-                guess = _predict(ev, delta, target_delta, target_stress, free)
-                result = solve_increment(evaluate_at, guess, free, target_stress, length, settings)
-                if not result.converged:
-                    cuts += 1
-                    if result.unreachable or cuts > settings.max_cutbacks or ds * 0.5 < smallest:
-                        failure = _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage, s,
-                                           cuts, k_start)
-                        raise failure
-                    ds *= 0.5
-                    continue
-                ev = result.evaluation
-                delta = ev.delta.copy()
-                if history is not None:  # commit the springs first: they were evaluated with the old angles
-                    c = history.commit(delta, ev.n_active, theta_birth)
-                    energy = {"external_work": energy["external_work"] + c.work, "elastic_energy": c.stored,
-                              "dissipation": energy["dissipation"] + c.dissipation,
-                              "coarsenings": c.coarsenings, "transitions": c.transitions}
-                if theta_birth is not None:
-                    birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, delta,
-                                 params.r_o, params.k_e, theta_birth)
-                s = s_new
-                if k_start is None and free.any():
-                    k_start = effective_stiffness(ev, free, _ramped(free, start_stress, end))
-                _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
-                        residual=result.residual, cutbacks=cuts, **energy)
-                step = rec.size - 1
-                if step in snap_steps or (snap_stage_ends and s >= 1.0 - 1e-12):
-                    take_snapshot(step, delta)
-                if progress is not None:
-                    progress(i_stage, len(path.stages), s, step, result.iterations)
-                if stage.adaptive:
-                    ds = min(ds * (1.5 if result.iterations <= 3 else 1.0), stage.max_fraction)
-                    if result.iterations > 8:
-                        ds *= 0.5
-                else:
-                    ds = min(2.0 * ds, nominal) if cuts else nominal
-                cuts = 0
-    except BaseException as err:  # noqa: B036 - recorded, then re-raised
-        interrupted = err
-        raise
-    finally:
-        attrs["wall_time_s"] = time.perf_counter() - t0
-        if failure is not None:
-            attrs["status"] = f"failed: {failure}"
-        elif interrupted is not None:
-            attrs["status"] = f"interrupted: {type(interrupted).__name__}: {interrupted}"
-        else:
-            attrs["status"] = "complete"
-        ds_out = rec.to_dataset(attrs, population=pop)
-        if output is not None:
-            from .io import write_netcdf
+        params = InterfaceParams(**cfg["params"])
+        path = LoadPath(tuple(Stage(tuple(s["control"]), tuple(s["target"]), s["increments"], s["adaptive"],
+                                    s["max_fraction"], s["name"]) for s in cfg["path"]["stages"]),
+                        name=cfg["path"]["name"])
+        settings = SolverSettings(**cfg["settings"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise ckpt.CheckpointError(f"checkpoint {str(checkpoint)!r} holds an invalid configuration ({err})") from err
+    snapshots = cfg["snapshots"] if cfg["snapshots"] != [] else None
+    every = meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
+    return simulate(params, path, n=cfg["n"], seed=cfg["seed"], sampler=cfg["sampler"], law=cfg["law"],
+                    policy=cfg["policy"], k=cfg["k"] or 16, snapshots=snapshots, settings=settings, output=output,
+                    progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every,
+                    resume=_Loaded(checkpoint, meta, arrays))
 
-            write_netcdf(ds_out, output)
-        if failure is not None:
-            failure.dataset = ds_out
-    return ds_out
+
+class _Loaded(os.PathLike):
+    """A checkpoint path already read by :func:`resume` (so the file is read once)."""
+
+    def __init__(self, path, meta, arrays):
+        self.path, self.meta, self.arrays = os.fspath(path), meta, arrays
+
+    def __fspath__(self):
+        return self.path
+
+
+@dataclass
+class _Position:
+    """Where the loop is, after the last converged increment (saved in checkpoints)."""
+
+    i_stage: int = 0          # index of the current stage (0-based)
+    started: bool = False     # stage start (start_delta, start_stress, ds, k_ref) set up
+    s: float = 0.0            # fraction of the stage done
+    ds: float = 0.0           # size of the next increment, fraction of the stage
+    k_ref: float = 0.0        # largest stiffness of the ramped stress directions seen in the stage [Pa/m]
+    start_delta: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    start_stress: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+class _Run:
+    """The state of one run: population, committed history, recorder, loop position."""
+
+    def __init__(self, params, path, *, n, seed, sampler, law, policy, k, snaps, settings, population, loaded,
+                 resume):
+        self.params, self.path, self.law, self.policy, self.settings = params, path, law, policy, settings
+        self.snap_steps, self.snap_stage_ends = snaps
+        self.resumed_from = None
+        self.config = None
+        if loaded is not None:
+            meta, arrays = loaded
+            pop = _population_from(params, meta, arrays)
+            if population is not None and not all(np.array_equal(getattr(population, a), getattr(pop, a))
+                                                  for a in ("r", "R", "u", "cos_phi", "sin_phi")):
+                raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} holds another population than the "
+                                           "one passed in")
+        elif population is not None:
+            pop = population
+        else:
+            pop = Population.sample(params, n, seed=seed, sampler=sampler)
+        self.pop = pop
+        self.config = ckpt.config_of(params, path, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law,
+                                     policy=policy, k=k, settings=settings, snapshots=snaps)
+        self.ws = Workspace(pop.n)
+        self.length = length_scale(params, path)
+        total = sum(s.increments for s in path.stages)
+        self.variables = STEP_VARIABLES if law != "mdr" else {**STEP_VARIABLES, **HISTORY_VARIABLES}
+        self.rec = Recorder(total + 1, self.variables)
+        self.wall_before = 0.0
+        if loaded is None:
+            self._fresh(k)
+        else:
+            self._restore(*loaded, resume)
+
+    # -- set-up ---------------------------------------------------------------------------------
+
+    def _fresh(self, k):
+        pop, params, path = self.pop, self.params, self.path
+        call = (f"asperity_sim.simulate(path={path.name}, n={pop.n}, seed={pop.seed}, sampler={pop.sampler!r}, "
+                f"law={self.law!r}, policy={self.policy!r})")
+        self.attrs = run_attributes(params, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=self.law,
+                                    policy=self.policy, path=path, version=__version__, call=call)
+        self.theta_birth = np.full(pop.n, np.nan) if self.policy == "birth" else None
+        self.history = (MDRHistory(pop, k=k, dn_cap=_closure_cap(pop, path, self.ws))
+                        if self.law == "mdr" else None)
+        if self.history is not None:
+            self.attrs["springs_per_contact"] = self.history.k
+        _stderr_attrs(self.attrs, pop.n)
+        self.delta = np.zeros(3)
+        self.ev = self.evaluate_at(self.delta)
+        self.energy = {"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, "coarsenings": 0,
+                       "transitions": np.zeros((4, 4), dtype=np.int64)} if self.history is not None else {}
+        self.pos = _Position()
+        _record(self.rec, params, self.ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0,
+                cutbacks=0, **self.energy)
+        if 0 in self.snap_steps:
+            self.take_snapshot(0)
+
+    def _restore(self, meta, arrays, resume):
+        pop = self.pop
+        try:
+            self.attrs = dict(meta["attrs"])
+            self.wall_before = float(meta.get("wall_time_s", 0.0))
+            self.theta_birth = arrays["theta_birth"].copy() if self.policy == "birth" else None
+            self.history = (MDRHistory.from_state_arrays(pop, {k[5:]: v for k, v in arrays.items()
+                                                               if k.startswith("hist_")})
+                            if self.law == "mdr" else None)
+            self.delta = arrays["delta"].copy()
+            ints = arrays["ev_ints"]
+            self.ev = Evaluation(delta=arrays["ev_delta"].copy(), stress=arrays["ev_stress"].copy(),
+                                 stderr=arrays["ev_stderr"].copy(), covariance=arrays["ev_covariance"].copy(),
+                                 tangent=arrays["ev_tangent"].copy(), n_contact=int(ints[0]), n_slip=int(ints[1]),
+                                 n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]),
+                                 n_active=int(ints[3]))
+            if self.history is not None:
+                ef = arrays["energy_f"]
+                self.energy = {"external_work": float(ef[0]), "elastic_energy": float(ef[1]),
+                               "dissipation": float(ef[2]), "coarsenings": int(arrays["energy_coarsenings"][0]),
+                               "transitions": arrays["energy_transitions"].copy()}
+            else:
+                self.energy = {}
+            pi, pf = arrays["pos_i"], arrays["pos_f"]
+            self.pos = _Position(i_stage=int(pi[0]), started=bool(pi[1]), s=float(pf[0]), ds=float(pf[1]),
+                                 k_ref=float(pf[2]), start_delta=arrays["pos_start_delta"].copy(),
+                                 start_stress=arrays["pos_start_stress"].copy())
+            size = int(meta["steps_recorded"])
+            for i in range(size):
+                self.rec.append(**{name: arrays[f"rec_{name}"][i] for name in self.variables})
+            for i, step in enumerate(meta["snapshot_steps"]):
+                prefix = f"snap{i}_"
+                self.rec.add_snapshot(int(step), {key[len(prefix):]: v for key, v in arrays.items()
+                                                  if key.startswith(prefix)})
+        except (KeyError, IndexError, ValueError) as err:
+            raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} is incomplete or damaged ({err})") from err
+        self.resumed_from = (os.fspath(resume), self.rec.size - 1)
+
+    # -- evaluation, snapshots, checkpoints -----------------------------------------------------
+
+    def evaluate_at(self, delta):
+        return evaluate(self.pop, delta, law=self.law, policy=self.policy, theta_birth=self.theta_birth,
+                        workspace=self.ws, history=self.history)
+
+    def take_snapshot(self, step):
+        if self.history is None:
+            self.rec.add_snapshot(step, snapshot(self.pop, self.delta, self.policy, self.theta_birth))
+        else:
+            self.rec.add_snapshot(step, self.history.snapshot(self.delta, self.theta_birth))
+
+    def save_checkpoint(self, target, every, wall):
+        pop, ev, pos = self.pop, self.ev, self.pos
+        arrays = {"pop_r": pop.r, "pop_R": pop.R, "pop_u": pop.u, "pop_cos_phi": pop.cos_phi,
+                  "pop_sin_phi": pop.sin_phi, "delta": self.delta,
+                  "ev_delta": ev.delta, "ev_stress": ev.stress, "ev_stderr": ev.stderr,
+                  "ev_covariance": ev.covariance, "ev_tangent": ev.tangent,
+                  "ev_ints": np.array([ev.n_contact, ev.n_slip, ev.n_partial, ev.n_active], dtype=np.int64),
+                  "ev_mean_theta": np.array([ev.mean_theta]),
+                  "pos_i": np.array([pos.i_stage, int(pos.started)], dtype=np.int64),
+                  "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
+                  "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress}
+        if self.theta_birth is not None:
+            arrays["theta_birth"] = self.theta_birth
+        if self.history is not None:
+            arrays.update({f"hist_{k}": v for k, v in self.history.state_arrays().items()})
+            arrays["energy_f"] = np.array([self.energy["external_work"], self.energy["elastic_energy"],
+                                           self.energy["dissipation"]])
+            arrays["energy_coarsenings"] = np.array([self.energy["coarsenings"]], dtype=np.int64)
+            arrays["energy_transitions"] = np.asarray(self.energy["transitions"], dtype=np.int64)
+        recorded = self.rec.to_dataset({})
+        for name in self.variables:
+            arrays[f"rec_{name}"] = recorded[name].values
+        for i, (_, snap) in enumerate(self.rec.snapshots):
+            arrays.update({f"snap{i}_{key}": v for key, v in snap.items()})
+        meta = {"version": __version__, "config": self.config, "attrs": self.attrs,
+                "population": {"weight": pop.weight, "seed": pop.seed, "sampler": pop.sampler},
+                "steps_recorded": self.rec.size, "snapshot_steps": [int(s) for s, _ in self.rec.snapshots],
+                "checkpoint_every": every, "wall_time_s": wall}
+        ckpt.save(target, meta=meta, arrays=arrays)
+
+    # -- the loop ---------------------------------------------------------------------------------
+
+    def go(self, *, output, progress, max_wall_time, checkpoint, checkpoint_every):
+        params, path, settings, rec, pos = self.params, self.path, self.settings, self.rec, self.pos
+        attrs = self.attrs
+        if self.resumed_from is not None:
+            attrs["history"] = (f"{attrs.get('history', '')}\n{_now()} resumed from checkpoint "
+                                f"{self.resumed_from[0]} at step {self.resumed_from[1]}").lstrip("\n")
+        failure = None
+        interrupted = None
+        consistent = True  # the state is that of the last converged increment (safe to checkpoint)
+        n_stages = len(path.stages)
+        t0 = time.perf_counter()
+        try:
+            while pos.i_stage < n_stages:
+                stage = path.stages[pos.i_stage]
+                i_stage = pos.i_stage + 1
+                free = stage.stress_controlled
+                end = np.asarray(stage.target, dtype=float)
+                nominal = 1.0 / stage.increments
+                smallest = nominal * 0.5 ** settings.max_cutbacks
+                if not pos.started:
+                    failure = _unreachable_by_symmetry(params, stage, i_stage, free, end)
+                    if failure is not None:
+                        raise failure
+                    pos.start_delta, pos.start_stress = self.delta.copy(), self.ev.stress.copy()
+                    pos.s, pos.ds = 0.0, nominal
+                    pos.k_ref = (effective_stiffness(self.ev, free, _ramped(free, pos.start_stress, end))
+                                 if free.any() else 0.0)
+                    pos.started = True
+                ds, cuts = pos.ds, 0
+                while pos.s < 1.0 - 1e-12:
+                    s = pos.s
+                    if max_wall_time is not None and time.perf_counter() - t0 > max_wall_time:
+                        failure = WallTimeExceededError(
+                            f"wall-time limit max_wall_time = {max_wall_time:g} s exceeded: stage {i_stage} "
+                            f"({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage after "
+                            f"{rec.size - 1} converged increments")
+                        raise failure
+                    ds = min(ds, 1.0 - s)
+                    s_new = 1.0 if s + ds > 1.0 - 1e-12 else s + ds
+                    target_delta = np.where(free, self.delta, pos.start_delta + s_new * (end - pos.start_delta))
+                    target_stress = np.where(free, pos.start_stress + s_new * (end - pos.start_stress), 0.0)
+                    guess = _predict(self.ev, self.delta, target_delta, target_stress, free)
+                    result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
+                    if not result.converged:
+                        cuts += 1
+                        if result.unreachable or cuts > settings.max_cutbacks or ds * 0.5 < smallest:
+                            failure = _failure(result, self.ev, free, pos.start_stress, end, target_stress, i_stage,
+                                               stage, s, cuts, pos.k_ref)
+                            raise failure
+                        ds *= 0.5
+                        continue
+                    consistent = False
+                    ev = self.ev = result.evaluation
+                    self.delta = delta = ev.delta.copy()
+                    if self.history is not None:  # commit the springs first: they were evaluated with the old angles
+                        c = self.history.commit(delta, ev.n_active, self.theta_birth)
+                        e = self.energy
+                        self.energy = {"external_work": e["external_work"] + c.work, "elastic_energy": c.stored,
+                                       "dissipation": e["dissipation"] + c.dissipation,
+                                       "coarsenings": c.coarsenings, "transitions": c.transitions}
+                    if self.theta_birth is not None:
+                        birth_angles(self.pop.r, self.pop.R, self.pop.u, self.pop.cos_phi, self.pop.sin_phi,
+                                     ev.n_active, delta, params.r_o, params.k_e, self.theta_birth)
+                    if free.any():
+                        pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, _ramped(free, pos.start_stress, end)))
+                    _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
+                            residual=result.residual, cutbacks=cuts, **self.energy)
+                    step = rec.size - 1
+                    if step in self.snap_steps or (self.snap_stage_ends and s_new >= 1.0 - 1e-12):
+                        self.take_snapshot(step)
+                    if stage.adaptive:
+                        ds = min(ds * (1.5 if result.iterations <= 3 else 1.0), stage.max_fraction)
+                        if result.iterations > 8:
+                            ds = max(0.5 * ds, smallest)  # never below the smallest increment: no Zeno stall
+                    else:
+                        ds = min(2.0 * ds, nominal) if cuts else nominal
+                    cuts = 0
+                    pos.s, pos.ds = s_new, ds
+                    stage_done = s_new >= 1.0 - 1e-12
+                    if stage_done:
+                        pos.i_stage, pos.started = pos.i_stage + 1, False
+                    consistent = True
+                    if checkpoint is not None and (step % checkpoint_every == 0 if checkpoint_every else stage_done):
+                        self.save_checkpoint(checkpoint, checkpoint_every,
+                                             self.wall_before + time.perf_counter() - t0)
+                    if progress is not None:
+                        progress(i_stage, n_stages, s_new, step, result.iterations)
+                    if stage_done:
+                        break
+        except BaseException as err:  # noqa: B036 - recorded, then re-raised
+            interrupted = err
+            raise
+        finally:
+            wall = self.wall_before + time.perf_counter() - t0
+            attrs["wall_time_s"] = wall
+            if failure is not None:
+                attrs["status"] = f"failed: {type(failure).__name__}: {failure}"
+            elif interrupted is not None:
+                attrs["status"] = f"interrupted: {type(interrupted).__name__}: {interrupted}"
+            else:
+                attrs["status"] = "complete"
+            if failure is None and interrupted is not None and checkpoint is not None and consistent:
+                try:
+                    self.save_checkpoint(checkpoint, checkpoint_every, wall)
+                except Exception as err:  # noqa: BLE001 - never hide the interruption itself
+                    warnings.warn(f"could not write the checkpoint of the interrupted run: {err}", stacklevel=2)
+            ds_out = rec.to_dataset(attrs, population=self.pop)
+            if output is not None:
+                from .io import write_netcdf
+
+                write_netcdf(ds_out, output)
+            if failure is not None:
+                failure.dataset = ds_out
+        return ds_out
+
+
+def length_scale(params, path) -> float:
+    """Displacement scale [m] of the solver: steps, searches and their limits are counted in it.
+
+    The mean height (alpha + 1) beta (SPEC §2), or, if larger, the Hertz closure that would
+    carry the largest prescribed stress with every asperity in contact,
+    (sigma_max / (N (4/3) E* sqrt(R_m)))^(2/3): heights piled at r = 0 (alpha -> -1) have a
+    vanishing mean, yet a stress target still needs that much closure.
+    """
+    sigma_max = max((abs(t) for s in path.stages for t, c in zip(s.target, s.control) if c == "stress"),
+                    default=0.0)
+    hertz = (sigma_max / (params.N * (4.0 / 3.0) * params.E_star * np.sqrt(params.R_m))) ** (2.0 / 3.0)
+    length = max((params.alpha + 1.0) * params.beta, float(hertz))
+    return length if np.isfinite(length) and length > 0.0 else params.beta
+
+
+def _population_from(params, meta, arrays):
+    info = meta["population"]
+    try:
+        pop = Population(params=params, r=arrays["pop_r"], R=arrays["pop_R"], u=arrays["pop_u"],
+                         cos_phi=arrays["pop_cos_phi"], sin_phi=arrays["pop_sin_phi"], weight=float(info["weight"]),
+                         seed=info["seed"], sampler=info["sampler"])
+    except KeyError as err:
+        raise ckpt.CheckpointError(f"checkpoint holds no population array {err}") from err
+    if pop.n != meta["config"]["n"] or any(a.shape != (pop.n,) for a in (pop.R, pop.u, pop.cos_phi, pop.sin_phi)):
+        raise ckpt.CheckpointError("checkpoint population arrays do not match its sample size")
+    return pop
+
+
+def _stderr_attrs(attrs, n):
+    """n = 1: the Monte Carlo standard error is undefined; it is reported as 0 and flagged here."""
+    attrs["stderr_defined"] = int(n > 1)
+    if n < 2:
+        attrs["stderr_note"] = ("n = 1: the Monte Carlo standard error of one sample is undefined; stress_stderr "
+                                "and displacement_stderr are written as 0 and are not error bars")
+
+
+def _unreachable_by_symmetry(params, stage, i_stage, free, end):
+    """mu = 0 and e = 0: every contact is frictionless and normal to the plane, so sigma_2 = sigma_3 = 0
+    identically (SPEC §3, §5) and the shear tangent is zero; a non-zero shear stress target cannot be met."""
+    if params.mu != 0.0 or params.k_e != 0.0:
+        return None
+    bad = [k for k in (1, 2) if free[k] and end[k] != 0.0]
+    if not bad:
+        return None
+    names = ", ".join(f"sigma_{k + 1} = {end[k]:.6g} Pa" for k in bad)
+    return StressNotReachableError(
+        f"{names} cannot be reached in stage {i_stage} ({stage.name or 'unnamed'}): with mu = 0 and e = 0 every "
+        "contact is frictionless and normal to the nominal plane (theta_m = 0, SPEC §3, §5), so the interface "
+        "carries no shear stress at any displacement (its shear tangent is zero); prescribe the shear "
+        "displacement instead")
+
+
+def _now():
+    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _check_int(name, value, lo, hi):
+    bad_type = isinstance(value, bool) or not isinstance(value, numbers.Integral)
+    if bad_type or value < lo or (hi is not None and value > hi):
+        rng = f"integer in [{lo}, {hi}]" if hi is not None else f"integer >= {lo}"
+        raise ValueError(f"{name} = {value!r} is not valid (valid range: {rng})")
+    return int(value)
+
+
+def _check_file(name, value):
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise ValueError(f"{name} = {value!r} is not a file path (valid: str or os.PathLike, or None)")
+    return value
 
 
 def solution_stderr(ev, free):
@@ -302,12 +633,17 @@ def effective_stiffness(ev, free, ramped):
     return float(np.min(np.linalg.eigvalsh(0.5 * (K + K.T))))
 
 
-def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage, s, cuts, k_start=None):
+def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage, s, cuts, k_ref=None):
     """The named exception for an increment that cannot be completed.
 
-    A prescribed stress is declared unreachable when the solver saw it saturate, or when the
-    stiffness of the interface in the ramped stress directions (the others held) has fallen
-    below 2 % of its value at the start of the stage: the target lies beyond a peak or a plateau.
+    The driver calls this only once the increment has been cut to its smallest size (or the
+    solver saw the target saturate).  The prescribed stress is then declared unreachable when
+    the solver saw it saturate, when the tangent block of the stress-controlled components is
+    (almost) singular at the last converged state or at the solver's last iterate (contacts
+    present: e.g. every contact sliding on a flat interface), or when the stiffness of the
+    interface in the ramped stress directions (the others held) has fallen below 10 % of
+    ``k_ref``, the largest value seen in the stage (its start included): the target lies
+    beyond a peak or a plateau.  Anything else is a :class:`ConvergenceError`.
     """
     where = f"stage {i_stage} ({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage after {cuts - 1} cut-backs"
     if not free.any():
@@ -316,8 +652,8 @@ def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage,
     names = ", ".join(f"sigma_{k + 1} = {target_stress[k]:.6g} Pa" for k in ramped)
     reached = ", ".join(f"sigma_{k + 1} = {ev.stress[k]:.6g} Pa" for k in ramped)
     k_now = effective_stiffness(ev, free, ramped)
-    softened = k_start is not None and k_start > 0 and k_now < 0.02 * k_start
-    if result.unreachable or softened or _saturated(ev, free):
+    softened = k_ref is not None and k_ref > 0 and k_now < 0.1 * k_ref
+    if result.unreachable or softened or _saturated(ev, free) or _saturated(result.evaluation, free):
         return StressNotReachableError(
             f"{names} cannot be reached: {where}; the interface carried at most {reached} "
             f"(at Delta = {np.array2string(ev.delta, precision=4)} m) and its stiffness in the stress-controlled "
@@ -326,7 +662,13 @@ def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage,
 
 
 def _saturated(ev, free):
-    """True when the tangent block of the free components has (almost) no stiffness left."""
+    """True when the tangent block of the free components has (almost) no stiffness left.
+
+    Only a state with contacts can have used up its stiffness: at zero load the tangent is
+    zero too, and a failure there says nothing about the target.
+    """
+    if ev.n_contact == 0:
+        return False
     T = ev.tangent[np.ix_(free, free)]
     sv = np.linalg.svd(T, compute_uv=False)
     return bool(sv[-1] <= 1e-6 * max(np.abs(ev.tangent).max(), 1e-300))
@@ -335,8 +677,10 @@ def _saturated(ev, free):
 def _check_snapshots(snapshots):
     if snapshots is None:
         return set(), False
-    if snapshots == "stage_ends":
-        return set(), True
+    if isinstance(snapshots, str):
+        if snapshots == "stage_ends":
+            return set(), True
+        raise ValueError(f"snapshots = {snapshots!r} must be None, 'stage_ends' or a sequence of step numbers")
     try:
         steps = set(snapshots)
     except TypeError:

@@ -91,6 +91,17 @@ def heights_from_uniform(params: InterfaceParams, p):
     return special.gammaincinv(params.alpha + 1.0, p) * params.beta
 
 
+def band_probability(params: InterfaceParams, r_max) -> float:
+    """P(r <= r_max) [1] for the gamma heights of SPEC §2 (1 for None or inf)."""
+    if r_max is None:
+        return 1.0
+    if isinstance(r_max, bool) or not isinstance(r_max, numbers.Real) or not r_max > 0.0:
+        raise ValueError(f"r_max = {r_max!r} is not a valid height band [m] (valid range: > 0, inf allowed)")
+    if math.isinf(r_max):
+        return 1.0
+    return float(special.gammainc(params.alpha + 1.0, r_max / params.beta))
+
+
 def radii_from_uniform(params: InterfaceParams, p):
     """Truncated Gaussian relative radii R [m] from uniforms, SPEC §2."""
     if params.R_sigma == 0.0:
@@ -154,8 +165,10 @@ class Population:
     R : ndarray (n,) [m]        relative radius of curvature
     u : ndarray (n,) [rad]      shifted meridional coordinate in [0, pi/2]
     cos_phi, sin_phi : ndarray (n,) [1]  azimuth phi as its cosine and sine
-    weight : float [1]          probability weight of each sample (1/n)
+    weight : float [1]          probability weight of each sample: P(r <= r_band) / n (1/n without a band)
     seed, sampler : how it was drawn
+    r_band : float [m]          heights were drawn from the gamma density truncated to [0, r_band]
+                                (inf: no band); see :meth:`sample` and :mod:`asperity_sim.pruning`
     """
 
     params: InterfaceParams
@@ -167,18 +180,32 @@ class Population:
     weight: float
     seed: int | None
     sampler: str
+    r_band: float = math.inf
 
     @classmethod
-    def sample(cls, params: InterfaceParams, n: int, seed: int | None = 0, sampler: str = "random") -> "Population":
-        """Draw n asperities from SPEC §2–§3; same (params, n, seed, sampler) gives identical arrays."""
+    def sample(cls, params: InterfaceParams, n: int, seed: int | None = 0, sampler: str = "random",
+               r_max: float | None = None) -> "Population":
+        """Draw n asperities from SPEC §2–§3; same (params, n, seed, sampler, r_max) gives identical arrays.
+
+        With ``r_max`` [m] (a height band, see :mod:`asperity_sim.pruning`) the heights are drawn
+        from the gamma density truncated to [0, r_max] (inverse CDF of the band) and every sample
+        carries the weight p / n, p = P(r <= r_max) exactly (regularised incomplete gamma), so
+        sigma = N (p / n) sum f is unbiased for Eq. (23) whenever no asperity above r_max touches.
+        ``r_max=None`` or inf is the full density (identical arrays to no band).
+        """
         if not isinstance(params, InterfaceParams):
             raise ValueError(f"params = {params!r} is not an InterfaceParams")
         n = _check_n(n)
         seed = _check_seed(seed)
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler = {sampler!r} is not known (valid: {', '.join(SAMPLERS)})")
+        p_band, r_band = band_probability(params, r_max), math.inf if r_max is None else float(r_max)
+        if not p_band > 0.0:
+            raise ValueError(f"r_max = {r_max!r} m holds no probability (P(r <= r_max) = {p_band!r}): band too narrow")
         U = unit_points(n, seed, sampler)
-        r = heights_from_uniform(params, U[:, 0])
+        r = heights_from_uniform(params, U[:, 0] * p_band if p_band < 1.0 else U[:, 0])
+        if math.isfinite(r_band):
+            r = np.minimum(r, r_band)  # the inverse CDF may round up past the band edge
         R = radii_from_uniform(params, U[:, 1])
         u, phi = orientation_from_uniform(params, U[:, 2], U[:, 3])
         order = np.argsort(r, kind="stable")
@@ -189,9 +216,10 @@ class Population:
             u=np.ascontiguousarray(u[order]),
             cos_phi=np.ascontiguousarray(np.cos(phi[order])),
             sin_phi=np.ascontiguousarray(np.sin(phi[order])),
-            weight=1.0 / n,
+            weight=p_band / n,
             seed=seed,
             sampler=sampler,
+            r_band=r_band,
         )
 
     @classmethod

@@ -8,6 +8,13 @@ result object and never raises for a non-converged increment: the driver decides
 Safeguards:
 - residuals are scaled by a stress scale and steps by a length scale, so tolerances
   mean the same from 1 Pa to 1e12 Pa and from 1 nm to 1 mm;
+- floating-point resolution: when Delta_f - r of the few contacts that carry the load is
+  far below Delta_f itself (a stress of 1 Pa on a stiff interface: overlaps of 1e-11 m at
+  Delta ~ 1e-6 m), the stress is quantised along Delta_f: one ulp of Delta_f moves it by
+  more than ``rtol``.  An iterate whose Newton step is within ``RESOLUTION_ULPS`` ulps of
+  Delta_f is then accepted if its residual is below ``resolution_rtol`` (the recorded
+  residual says how close it is); a larger residual there is a real discontinuity and
+  fails;
 - one free component: Newton inside a sign-change bracket, bisection when Newton leaves
   it, and a doubling search for the bracket when the tangent is zero (first contact
   under stress control) or points the wrong way;
@@ -38,6 +45,11 @@ class SolverSettings:
     max_expansions : doublings of the bracket search before a target is declared unreachable
     max_step : largest Newton step, in length scales
     max_cutbacks : increment halvings before the driver stops
+    max_search : farthest a search for contact or for a bracket goes from its start, in length
+        scales; a target not met within it is unreachable (bounds the cost of a trial
+        evaluation, which grows with the overlap for history laws)
+    resolution_rtol : largest scaled residual accepted when the solution is pinned to within
+        the floating-point resolution of Delta (see the module docstring; never below rtol)
     """
 
     rtol: float = 1e-10
@@ -46,15 +58,31 @@ class SolverSettings:
     max_expansions: int = 60
     max_step: float = 2.0
     max_cutbacks: int = 12
+    resolution_rtol: float = 1e-6
+    max_search: float = 1e4
 
     def __post_init__(self):
         check_real("rtol", self.rtol, 0.0, 1e-2, lo_open=True)
+        check_real("resolution_rtol", self.resolution_rtol, 0.0, 1e-2, lo_open=True)
         check_real("sigma_floor", self.sigma_floor, 0.0, None, lo_open=True)
         check_real("max_step", self.max_step, 0.0, None, lo_open=True)
+        check_real("max_search", self.max_search, 0.0, None, lo_open=True)
         for name, lo in (("max_iter", 1), ("max_expansions", 1), ("max_cutbacks", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lo:
                 raise ValueError(f"{name} = {v!r} is not valid (valid range: integer >= {lo})")
+
+
+_NONFINITE = "non-finite stress at Delta = {} m: the interface response is beyond the floating-point range"
+RESOLUTION_ULPS = 64.0  # a Newton step this many ulps of Delta or less is below its resolution
+
+
+def _below_resolution(x, step):
+    """True when every component of ``step`` [m] is within RESOLUTION_ULPS ulps of ``x`` [m]."""
+    x = np.atleast_1d(np.asarray(x, dtype=float))
+    step = np.atleast_1d(np.asarray(step, dtype=float))
+    ulp = np.spacing(np.maximum(np.abs(x), np.abs(x + step)))
+    return bool(np.all(np.isfinite(step)) and np.all(np.abs(step) <= RESOLUTION_ULPS * ulp))
 
 
 @dataclass
@@ -88,6 +116,10 @@ def solve_increment(evaluate, delta_guess, free, target, length_scale, settings=
     target : ndarray (3,) [Pa], target stresses (read on free components only)
     length_scale : float [m], typical displacement (sets step caps and search steps)
     """
+    return _checked(_solve(evaluate, delta_guess, free, target, length_scale, settings))
+
+
+def _solve(evaluate, delta_guess, free, target, length_scale, settings):
     free = np.asarray(free, dtype=bool)
     x = np.array(delta_guess, dtype=float)
     ev = evaluate(x)
@@ -109,54 +141,90 @@ def solve_increment(evaluate, delta_guess, free, target, length_scale, settings=
     return again
 
 
+def _checked(result):
+    """A 'converged' evaluation with a non-finite stress, covariance or tangent is no solution.
+
+    This happens only when the parameters put the stress beyond the floating-point range
+    (e.g. N G sqrt(R) Delta^1.5 > 1e308); the driver then cuts the increment and stops with
+    a named error, and nothing non-finite is ever recorded.
+    """
+    ev = result.evaluation
+    if result.converged and not all(np.all(np.isfinite(a)) for a in (ev.stress, ev.covariance, ev.tangent)):
+        result.converged = False
+        result.message = (f"the stress, its covariance or its tangent at Delta = {ev.delta} m is not finite: the "
+                          "parameters put the interface response beyond the floating-point range")
+    return result
+
+
 def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
     """Safeguarded Newton with bracketing for one stress-controlled component k."""
     lo = hi = None  # displacements where the residual is < 0 and > 0
     r_prev = None
     search = L / 64.0
+    x0 = float(x[k])
     expansions = 0
-    best = math.inf
+    best_search = math.inf
+    best_r, best = math.inf, (0, ev)  # smallest |residual| seen, with (iterations, evaluation)
+    res_tol = max(settings.resolution_rtol, settings.rtol)
     stalled = 0
     rate = 0.0
     for it in range(1, settings.max_iter + settings.max_expansions + 1):
         r, scale = _scaled_residual(ev, free, target, settings)
         r = float(r[0])
         if not math.isfinite(r):
-            return SolveResult(False, it - 1, r, rate, f"non-finite stress at Delta = {x}", ev)
+            return SolveResult(False, it - 1, r, rate, _NONFINITE.format(x), ev)
         if abs(r) <= settings.rtol:
             return SolveResult(True, it - 1, abs(r), rate, "converged", ev)
         if r_prev is not None and r_prev != 0.0:
             rate = abs(r / r_prev)
         r_prev = r
+        if abs(r) < best_r:
+            best_r, best = abs(r), (it - 1, ev)
         if r < 0.0:
             lo = x[k]
         else:
             hi = x[k]
         T = ev.tangent[k, k] / scale
         x_new = x[k] - r / T if T > 0.0 and math.isfinite(T) else math.nan
+        if abs(r) <= res_tol and math.isfinite(x_new) and _below_resolution(x[k], x_new - x[k]):
+            return SolveResult(True, it - 1, abs(r), rate, f"converged to the floating-point resolution of "
+                               f"Delta_{k + 1} (residual {abs(r):.3g})", ev)
         if lo is not None and hi is not None:
             a, b = min(lo, hi), max(lo, hi)
             if not (a < x_new < b):
                 x_new = 0.5 * (a + b)
             if b - a <= 1e-15 * max(abs(a), abs(b), L):
+                if best_r <= res_tol:  # pinned to a few ulps: the stress is quantised
+                    return SolveResult(True, best[0], best_r, rate,
+                                       f"converged to the floating-point resolution of Delta_{k + 1} "
+                                       f"(residual {best_r:.3g})", best[1])
+                ulps = (b - a) / max(np.spacing(max(abs(a), abs(b))), 5e-324)
                 return SolveResult(False, it, abs(r), rate,
-                                   f"bracket on Delta_{k + 1} collapsed at {x[k]:.6g} m with residual {r:.3g} "
-                                   "(the stress is discontinuous here)", ev)
+                                   f"bracket on Delta_{k + 1} collapsed to {b - a:.3g} m ({ulps:.0f} ulps) at "
+                                   f"{x[k]:.6g} m with a scaled residual still {best_r:.3g} > {res_tol:.3g}: the "
+                                   f"stress is discontinuous there, or changes by more than that between neighbouring "
+                                   f"floating-point values of Delta_{k + 1} (contact overlaps far below Delta)", ev)
         else:
             direction = 1.0 if r < 0.0 else -1.0  # the response is stiffening: sigma_k grows with Delta_k
             if not math.isfinite(x_new) or abs(x_new - x[k]) > settings.max_step * L:
                 x_new = x[k] + direction * search
                 search *= 2.0
                 expansions += 1
-                if abs(r) < best * (1.0 - 1e-9):
-                    best, stalled = abs(r), 0
+                if abs(r) < best_search * (1.0 - 1e-9):
+                    best_search, stalled = abs(r), 0
                 else:
                     stalled += 1
                 if expansions > settings.max_expansions or stalled >= 8:
                     return SolveResult(False, it, abs(r), rate,
                                        f"sigma_{k + 1} = {target[k]:.6g} Pa cannot be reached: along Delta_{k + 1} the "
-                                       f"stress saturates at about {ev.stress[k]:.6g} Pa (Delta_{k + 1} = {x[k]:.6g} m)",
-                                       ev, unreachable=True)
+                                       f"stress saturates at about {ev.stress[k]:.6g} Pa "
+                                       f"(Delta_{k + 1} = {x[k]:.6g} m)", ev, unreachable=True)
+                if abs(x_new - x0) > settings.max_search * L:
+                    return SolveResult(False, it, abs(r), rate,
+                                       f"sigma_{k + 1} = {target[k]:.6g} Pa cannot be reached within |Delta_{k + 1} "
+                                       f"- {x0:.6g} m| <= max_search = {settings.max_search:g} length scales "
+                                       f"({settings.max_search * L:.3g} m): the stress there is only "
+                                       f"{ev.stress[k]:.6g} Pa", ev, unreachable=True)
         x[k] = x_new
         ev = evaluate(x)
     r, _ = _scaled_residual(ev, free, target, settings)
@@ -170,18 +238,27 @@ def _solve_newton(evaluate, x, ev, free, target, L, settings):
     r, scale = _scaled_residual(ev, free, target, settings)  # the scale stays fixed for this solve
     norm = float(np.max(np.abs(r)))
     rate, slow = 0.0, 0
+    res_tol = max(settings.resolution_rtol, settings.rtol)
     search = np.full(idx.size, L / 64.0)
     for it in range(1, settings.max_iter + 1):
         if not np.all(np.isfinite(r)):
-            return SolveResult(False, it - 1, math.inf, rate, f"non-finite stress at Delta = {x}", ev)
+            return SolveResult(False, it - 1, math.inf, rate, _NONFINITE.format(x), ev)
         if norm <= settings.rtol:
             return SolveResult(True, it - 1, norm, rate, "converged", ev)
         # scaled Jacobian: d r / d (x / L)
         J = ev.tangent[np.ix_(idx, idx)] * (L / scale)
         step, *_ = np.linalg.lstsq(J, -r, rcond=1e-12)
+        if norm <= res_tol and _below_resolution(x[idx], step * L):
+            return SolveResult(True, it - 1, norm, rate,
+                               f"converged to the floating-point resolution of Delta (residual {norm:.3g})", ev)
         # components the tangent cannot move (no contact yet): search outwards, doubling
         dead = np.abs(J).sum(axis=0) <= 1e-12 * max(np.abs(J).max(initial=0.0), 1e-300)
         for i in np.flatnonzero(dead & (np.abs(r) > settings.rtol)):
+            if search[i] > settings.max_search * L:
+                return SolveResult(False, it - 1, norm, rate,
+                                   f"sigma_{idx[i] + 1} = {target[idx[i]]:.6g} Pa cannot be reached: no stiffness "
+                                   f"along Delta_{idx[i] + 1} within max_search = {settings.max_search:g} length "
+                                   f"scales ({settings.max_search * L:.3g} m)", ev, unreachable=True)
             step[i] = (1.0 if r[i] < 0.0 else -1.0) * search[i] / L
             search[i] *= 2.0
         size = float(np.max(np.abs(step)))

@@ -183,6 +183,40 @@ class MDRHistory:
     def virgin(cls, pop, k=16, dn_cap=None):
         return cls(pop, k=k, dn_cap=dn_cap, capacity=1)
 
+    def state_arrays(self) -> dict:
+        """The committed history as plain arrays (checkpoints): slot map, used slots, scalars.
+
+        Spare capacity is not exported: it holds no history and its size does not change any
+        result.  :meth:`from_state_arrays` rebuilds an equivalent history.
+        """
+        m = self.n_slots
+        return {"slot": self.slot.copy(), "w": self.w[:m].copy(), "h": self.h[:m].copy(),
+                "dn_c": self.dn_c[:m].copy(), "state_c": self.state_c[:m].copy(), "delta_c": self.delta_c.copy(),
+                "counts": np.array([self.k, self.n_slots, self.n_upper, self.coarsenings], dtype=np.int64),
+                "dn_cap": np.array([self.dn_cap])}
+
+    @classmethod
+    def from_state_arrays(cls, pop, arrays) -> "MDRHistory":
+        """A history equal to the one that exported ``arrays`` (see :meth:`state_arrays`)."""
+        k, n_slots, n_upper, coarsenings = (int(v) for v in arrays["counts"])
+        hist = cls(pop, k=k, dn_cap=float(arrays["dn_cap"][0]), capacity=max(n_slots, 1))
+        expected = {"slot": (pop.n,), "w": (n_slots, k, 2), "h": (n_slots,), "dn_c": (n_slots,),
+                    "state_c": (n_slots,), "delta_c": (3,)}
+        for name, shape in expected.items():
+            a = arrays[name]
+            if a.shape != shape:
+                raise ValueError(f"history array {name} has shape {a.shape}, expected {shape}")
+        if np.any(arrays["slot"] >= n_slots) or (n_slots and int(arrays["slot"].max()) != n_slots - 1):
+            raise ValueError("history slot map does not match its slot count")
+        hist.slot[:] = arrays["slot"]
+        hist.w[:n_slots] = arrays["w"]
+        hist.h[:n_slots] = arrays["h"]
+        hist.dn_c[:n_slots] = arrays["dn_c"]
+        hist.state_c[:n_slots] = arrays["state_c"]
+        hist.delta_c = np.array(arrays["delta_c"], dtype=float)
+        hist.n_slots, hist.n_upper, hist.coarsenings = n_slots, n_upper, coarsenings
+        return hist
+
     @property
     def nbytes(self) -> int:
         """Bytes held: slot map (n) plus springs, spacing, overlap and state of each slot."""

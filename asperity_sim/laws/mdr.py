@@ -98,7 +98,9 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
         wt = wct + a * ddt
         limit = lm * u
         m2 = ws * ws + wt * wt
-        slipping = m2 > limit * limit
+        # mu = 0: the stick region is empty, every spring slides (zero force and zero tangent,
+        # also at a zero tangential increment, where the stick branch would give a spurious q a)
+        slipping = m2 > limit * limit or lm == 0.0
         if not slipping:
             Fs += ws
             Ft += wt
@@ -113,7 +115,7 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
                 es, et = ws / m, wt / m
             else:
                 es = et = 0.0
-            ratio = limit / m
+            ratio = limit / m if m > 0.0 else 0.0
             # d(limit e)/d(w*) = ratio (I - e e^T); d limit/d delta_n = lm
             P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
             J10 += P00 * bs + P01 * bt + lm * es

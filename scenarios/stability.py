@@ -1,0 +1,517 @@
+"""Stability matrix: stiff and extreme interfaces on the paper's paths and a cyclic shear path.
+
+Physical question: does every run over the corners of the parameter space either finish
+with finite results or stop with a named exception that says why?  Each case changes the
+R1 (or S1) set of Table 1 towards an edge of SPEC §1 -- alone and combined -- and runs
+
+* ``three_step``: the 3-step displacement path (SPEC §7, Fig. 10/11) to d,
+* ``cns``: sigma_1 to sigma_n, then Delta_2 to 2 d at constant normal stress (Fig. 13),
+* ``cyclic``: sigma_1 to sigma_n, then Delta_2 -> +A -> -A -> +A at constant sigma_1 (A = d/2),
+* where a case asks for them: ``zero_load`` (stress control from exactly zero load:
+  sigma_1 = sigma_2 = 0 held, then shear at zero normal stress, then sigma_1 to sigma_n under
+  shear), ``stress_shear`` (sigma_1, sigma_2 = 0.3 mu sigma_1 and sigma_3 = 0 all prescribed),
+  ``above_strength`` (sigma_2 = 3 (mu + 1) sigma_n prescribed, beyond the frictional
+  strength: must stop with ``StressNotReachableError``) and ``tension`` (sigma_1 < 0: must
+  stop with ``StressNotReachableError``),
+
+for the laws ``paper`` and ``mdr``.  d is the larger of the 15 % height quantile and 0.6
+mean heights (so about 15 % of the asperities touch at the end of the closure step, as for
+R1 at the paper's 15 um) and sigma_n the ``paper`` stress at Delta = (d, 0, 0) unless the
+case prescribes it (1 Pa, or the stress at which theta_m(c, R_m) reaches pi/2).  The cases:
+:data:`CASES` (each with a note saying what it probes); ``--quick`` keeps those marked quick,
+which is also the fast matrix run by ``tests/test_stability.py``.
+
+Per run it records: outcome (``complete`` or the exception's class name) against the
+expected one, every increment converged, Newton iterations (max, mean), the largest and
+the final scaled residual, cut-backs, whether any output (data variable or numeric
+attribute, also of the partial dataset of a failed run) is NaN or inf, the message, the
+wall time.  Each run has a soft wall-time limit (``simulate(max_wall_time=...)``, a named
+``WallTimeExceededError``) and runs in a worker process killed at a hard limit, so a hang
+inside a kernel is recorded too.
+
+Relations: SPEC §1–§7 only; nothing is compared with a reference here (the physics is
+tested elsewhere): this is about robustness.
+
+Run:   python scenarios/stability.py [--n 2000] [--quick] [--no-big] [--only SUBSTRING]
+Writes outputs/stability.nc (one record per run) and outputs/stability.md (the tables for
+the README: one row per case, then one row per run).
+Expected run time: about 3-5 minutes on 2 cores (the six 1e7-asperity runs take most of it);
+``--quick`` (no 1e7 case, 3 increments per stage) about 1 minute.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import parse_args  # noqa: E402
+
+LAWS = ("paper", "mdr")
+PATHS = ("three_step", "cns", "cyclic", "zero_load", "stress_shear", "above_strength", "tension")
+DEFAULT_PATHS = ("three_step", "cns", "cyclic")
+SQ = 1.0 / (3.0 * math.sqrt(2.0))  # c = d = SQ puts b/2 + 3 sqrt(c² + d²) exactly at 1 with b = 0
+R1_MEAN = (6.14 + 1.0) * 3.52e-6   # mean height of R1 [m]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One corner of the parameter space: changes to a Table 1 set, sample size, paths and laws."""
+
+    name: str
+    changes: dict = field(default_factory=dict)
+    base: str = "R1"
+    n: int | None = None            # None: the --n of the run
+    paths: tuple = DEFAULT_PATHS
+    laws: tuple = LAWS
+    sigma_n: object = None          # None (stress at d), a stress [Pa], or "pi/2"
+    policy: str = "follow"
+    inc: int | None = None          # increments per stage (None: the run's)
+    expect: dict = field(default_factory=dict)  # path kind -> expected outcome, overriding EXPECTED
+    big: bool = False               # skipped by --no-big and --quick
+    quick: bool = True              # part of --quick (and of the tests' fast matrix)
+    note: str = ""
+
+
+CASES = (
+    # -- alone ------------------------------------------------------------------------------
+    Case("R1", note="Table 1 rough set (e = 1)"),
+    Case("S1", base="S1", note="Table 1 smooth set"),
+    Case("e=0", {"e": 0.0}, paths=DEFAULT_PATHS + ("above_strength",),
+         note="flat on rough: theta_m = 0, shear strength exactly mu sigma_1"),
+    Case("theta_m=pi/2", {"R_m": 2e-6, "R_sigma": 0.5e-6}, quick=False,
+         note="R_m small against the closure: k_e c / R > 1, cos theta_m clipped at 0"),
+    Case("alpha=-0.999", {"alpha": -0.999}, note="heights piled at r = 0 (half of them exactly 0)"),
+    Case("alpha=1e4", {"alpha": 1e4, "beta": R1_MEAN / (1e4 + 1.0)},
+         note="narrow height band (s.d. 1 % of the mean)"),
+    Case("R_sigma=0", {"R_sigma": 0.0}, note="every R = R_m"),
+    Case("R_sigma=R_m", {"R_sigma": 50e-6}, quick=False, note="truncation at R > 0 bites; R down to ~0"),
+    Case("mu=0", {"mu": 0.0}, paths=DEFAULT_PATHS + ("above_strength",),
+         note="no tangential stiffness of a contact"),
+    Case("mu=10", {"mu": 10.0}),
+    Case("nu=0", {"nu": 0.0}, quick=False),
+    Case("nu=0.5", {"nu": 0.5}),
+    Case("nu=-0.9", {"nu": -0.9}),
+    Case("nu=-0.999", {"nu": -0.999}, quick=False),
+    Case("G=1e6", {"G": 1e6}),
+    Case("G=1e13", {"G": 1e13}),
+    Case("N=1", {"N": 1.0}),
+    Case("N=1e12", {"N": 1e12}),
+    Case("n=1", n=1, paths=DEFAULT_PATHS + ("zero_load",), note="one asperity: standard errors undefined (inf)"),
+    Case("n=2", n=2, quick=False),
+    Case("n=1e7", n=10_000_000, big=True, quick=False, note="ten million asperities (mdr: k = 4 springs)"),
+    Case("sigma_n=1 Pa", sigma_n=1.0, paths=("cns", "cyclic"), note="first contact of a few asperities"),
+    Case("sigma_n at theta_m=pi/2", sigma_n="pi/2", paths=("cns", "cyclic"),
+         note="closure 4 R_m: theta_m(c, R_m) = pi/2 (about 0.4 TPa for R1)"),
+    Case("zero load", paths=("zero_load",), note="stress control from exactly zero load"),
+    Case("above strength", paths=("above_strength",), note="sigma_2 = 3 (mu + 1) sigma_1 prescribed"),
+    Case("tension", paths=("tension",), note="sigma_1 < 0 prescribed: contacts only push"),
+    Case("stress-controlled shear", paths=("stress_shear",),
+         note="sigma_1, sigma_2 = 0.3 mu sigma_1 and sigma_3 = 0 all prescribed"),
+    Case("r_o=1 mm", {"r_o": 1e-3}, note="initial closure: theta_m = pi/2 from the start"),
+    Case("R2 (marble)", base="R2", quick=False, note="Table 1 marble set, r_o > 0, mm scale"),
+    Case("alpha=-1+1e-9", {"alpha": -1.0 + 1e-9}, quick=False, note="all heights 0 to double precision"),
+    Case("policy birth", policy="birth", paths=DEFAULT_PATHS + ("stress_shear",), note="frozen contact angles"),
+    Case("b=-1, c=0.5", {"b": -1.0, "c": 0.5}, note="orientation density zero on an edge"),
+    Case("b=2", {"b": 2.0}, quick=False, note="orientation density zero at u = pi/2"),
+    Case("c=d=1/(3 sqrt 2)", {"c": SQ, "d": SQ}, quick=False, note="azimuthal anisotropy at its bound"),
+    # -- combined ---------------------------------------------------------------------------
+    Case("e=0, mu=0", {"e": 0.0, "mu": 0.0}, paths=DEFAULT_PATHS + ("above_strength", "zero_load"),
+         note="singular shear tangent: displacement-driven shear works, stress-driven fails"),
+    Case("stiff: G=1e13, N=1e12, nu=0.5", {"G": 1e13, "N": 1e12, "nu": 0.5}),
+    Case("soft: G=1e6, N=1, sigma_n=1 Pa", {"G": 1e6, "N": 1.0}, sigma_n=1.0),
+    Case("soft-dense: G=1e6, N=1e12", {"G": 1e6, "N": 1e12}, quick=False),
+    Case("n=1, e=0, mu=0", {"e": 0.0, "mu": 0.0}, n=1, paths=DEFAULT_PATHS + ("above_strength",)),
+    Case("n=1, alpha=-0.999, G=1e13", {"alpha": -0.999, "G": 1e13}, n=1),
+    Case("alpha=-0.999, R_sigma=R_m, theta_m=pi/2", {"alpha": -0.999, "R_m": 2e-6, "R_sigma": 2e-6},
+         quick=False),
+    Case("alpha=1e4, R_sigma=0, e=0", {"alpha": 1e4, "beta": R1_MEAN / (1e4 + 1.0), "R_sigma": 0.0, "e": 0.0},
+         quick=False),
+    Case("mu=10, nu=-0.9, b=-1, c=0.5", {"mu": 10.0, "nu": -0.9, "b": -1.0, "c": 0.5}),
+    Case("mu=0, theta_m=pi/2, sigma_n at pi/2", {"mu": 0.0, "R_m": 2e-6, "R_sigma": 0.5e-6}, sigma_n="pi/2",
+         paths=("cns", "cyclic", "above_strength"), quick=False, expect={"above_strength": "complete"},
+         note="contacts up to 90 degrees: no finite shear strength, 3 sigma_n of shear is carried"),
+    Case("G=1e13, sigma_n=1 Pa, zero load", {"G": 1e13}, sigma_n=1.0, paths=("cns", "zero_load")),
+    Case("e=0, alpha=-0.999, N=1e12, mu=10", {"e": 0.0, "alpha": -0.999, "N": 1e12, "mu": 10.0},
+         paths=DEFAULT_PATHS + ("above_strength",), quick=False),
+    Case("mu=0, e=0, stress-controlled shear", {"mu": 0.0, "e": 0.0}, paths=("stress_shear", "tension")),
+    Case("birth, r_o=1 mm, mu=10", {"r_o": 1e-3, "mu": 10.0}, policy="birth", quick=False),
+    Case("birth, n=1, alpha=-0.999", {"alpha": -0.999}, n=1, policy="birth", paths=DEFAULT_PATHS + ("zero_load",)),
+)
+
+EXPECTED = {"above_strength": "StressNotReachableError", "tension": "StressNotReachableError"}
+
+
+def expected(case, kind):
+    """What a run must end with: ``complete`` or the name of the exception that must stop it."""
+    if kind in case.expect:
+        return case.expect[kind]
+    return EXPECTED.get(kind, "complete")
+
+
+# --------------------------------------------------------------------------- scales and paths
+
+
+def params_of(case):
+    from asperity_sim import presets
+
+    return presets.TABLE1[case.base].replace(**case.changes)
+
+
+def closure_scale(p):
+    """d [m]: the larger of the 15 % height quantile and 0.6 mean heights (SPEC §2)."""
+    from scipy import stats
+
+    return max(float(stats.gamma.ppf(0.15, p.alpha + 1.0, scale=p.beta)), 0.6 * (p.alpha + 1.0) * p.beta)
+
+
+def normal_stress(p, case, d):
+    """sigma_n [Pa] of the stress-controlled paths, from a 20 000-asperity paper-law population."""
+    from asperity_sim import Population
+
+    if isinstance(case.sigma_n, (int, float)):
+        return float(case.sigma_n)
+    pop = Population.sample(p, 20_000, seed=12345)
+    if case.sigma_n == "pi/2":
+        # theta_m(c, R_m) = pi/2 at c = R_m / k_e (Eq. 9); the closure is Delta_1 = c - r_o
+        d = max(p.R_m / p.k_e - p.r_o, d) if p.k_e > 0 else 10.0 * d
+    return float(pop.evaluate([d, 0.0, 0.0]).stress[0])
+
+
+def build_path(kind, p, d, sigma_n, inc):
+    from asperity_sim import paths
+
+    S, D = paths.STRESS, paths.DISPLACEMENT
+    if kind == "three_step":
+        return paths.three_step(d, increments=inc)
+    if kind == "cns":
+        return paths.constant_normal_shear(sigma_n, 2.0 * d, increments=2 * inc, normal_increments=inc)
+    if kind == "cyclic":
+        a = 0.5 * d
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
+            paths.Stage((S, D, D), (sigma_n, a, 0.0), inc, name="+A"),
+            paths.Stage((S, D, D), (sigma_n, -a, 0.0), 2 * inc, name="-A"),
+            paths.Stage((S, D, D), (sigma_n, a, 0.0), 2 * inc, name="+A again"),
+        ), name="cyclic_shear")
+    if kind == "zero_load":
+        return paths.LoadPath((
+            paths.Stage((S, S, D), (0.0, 0.0, 0.0), 2, name="sigma_1 = sigma_2 = 0 from zero load"),
+            paths.Stage((S, D, D), (0.0, d, 0.0), inc, name="shear at zero normal stress"),
+            paths.Stage((S, D, D), (sigma_n, d, 0.0), inc, name="normal loading under shear"),
+        ), name="zero_load")
+    if kind == "stress_shear":
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
+            paths.Stage((S, S, S), (sigma_n, 0.3 * p.mu * sigma_n, 0.0), inc, name="shear by stress"),
+        ), name="stress_shear")
+    if kind == "tension":
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (-sigma_n, 0.0, 0.0), inc, name="tension"),
+        ), name="tension")
+    if kind == "above_strength":
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
+            paths.Stage((S, S, D), (sigma_n, 3.0 * (p.mu + 1.0) * sigma_n, 0.0), inc,
+                        name="shear stress above the strength"),
+        ), name="above_strength")
+    raise ValueError(f"path kind {kind!r} is not known (valid: {', '.join(PATHS)})")
+
+
+# --------------------------------------------------------------------------- one run
+
+
+def nonfinite_outputs(ds):
+    """Names of data variables and numeric attributes of ``ds`` holding NaN or inf."""
+    bad = [name for name, v in ds.data_vars.items()
+           if np.issubdtype(v.dtype, np.number) and not np.all(np.isfinite(v.values))]
+    for key, val in ds.attrs.items():
+        a = np.asarray(val)
+        if np.issubdtype(a.dtype, np.number) and not np.all(np.isfinite(a)):
+            bad.append(f"attr {key}")
+    return bad
+
+
+def empty_record(case, kind, law, n):
+    return {"case": case.name, "path": kind, "law": law, "n": n, "expected": expected(case, kind), "outcome": "",
+            "all_converged": 0, "message": "", "steps": 0, "iter_max": 0, "iter_mean": 0.0, "residual_max": 0.0,
+            "residual_final": 0.0, "cutbacks": 0, "nonfinite": "", "wall_time_s": 0.0, "sigma_n": math.nan,
+            "d": math.nan}
+
+
+def run_one(case, kind, law, n, seed, inc, soft_limit):
+    """Run one (case, path, law) and return its record (a dict of plain values)."""
+    import asperity_sim as asim
+
+    rec = empty_record(case, kind, law, n)
+    t0 = time.perf_counter()
+    ds = None
+    try:
+        p = params_of(case)
+        d = closure_scale(p)
+        sigma_n = normal_stress(p, case, d)
+        rec["d"], rec["sigma_n"] = d, sigma_n
+        path = build_path(kind, p, d, sigma_n, inc)
+        ds = asim.simulate(p, path, n=n, seed=seed, law=law, policy=case.policy, k=4 if n > 10**6 else 16,
+                           max_wall_time=soft_limit)
+        rec["outcome"], rec["all_converged"] = "complete", 1
+    except asim.SimulationError as err:
+        rec["outcome"], rec["message"] = type(err).__name__, str(err)
+        ds = err.dataset
+    except Exception as err:  # noqa: BLE001 - an unnamed failure is what the matrix looks for
+        rec["outcome"] = type(err).__name__
+        rec["message"] = f"{err} | {traceback.format_exc(limit=3)}"
+    rec["wall_time_s"] = time.perf_counter() - t0
+    if ds is not None:
+        it = ds["iterations"].values[1:]
+        res = ds["residual"].values[1:]
+        rec["steps"] = int(ds.sizes["step"]) - 1
+        if it.size:
+            rec["iter_max"], rec["iter_mean"] = int(it.max()), float(it.mean())
+            rec["residual_max"], rec["residual_final"] = float(np.max(res)), float(res[-1])
+        rec["cutbacks"] = int(ds["cutbacks"].values.sum())
+        rec["nonfinite"] = ", ".join(nonfinite_outputs(ds))
+    return rec
+
+
+def verdict(rec, iter_cap):
+    """'pass' when the run did what it must: expected outcome, finite outputs, a message on failure."""
+    if rec["nonfinite"]:
+        return "FAIL: non-finite output"
+    if rec["outcome"] != rec["expected"]:
+        return f"FAIL: {rec['outcome']}"
+    if rec["outcome"] != "complete" and not rec["message"]:
+        return "FAIL: no message"
+    if rec["iter_max"] > iter_cap:
+        return "FAIL: iteration cap"
+    return "pass"
+
+
+# --------------------------------------------------------------------------- worker with a hard time limit
+
+
+def _worker(conn):
+    import asperity_sim  # noqa: F401 - imports (and numba's cache) load before the first job's clock starts
+
+    conn.send("ready")
+    while True:
+        job = conn.recv()
+        if job is None:
+            return
+        try:
+            conn.send(run_one(*job))
+        except BaseException as err:  # noqa: B036 - reported to the parent, never lost
+            conn.send({"outcome": type(err).__name__, "message": str(err)})
+
+
+class Worker:
+    """One spawned process running jobs; killed (SIGKILL) and replaced when a job exceeds its limit."""
+
+    def __init__(self):
+        self.ctx = mp.get_context("spawn")
+        self.proc = None
+        self._start()
+
+    def _start(self):
+        self.conn, child = self.ctx.Pipe()
+        self.proc = self.ctx.Process(target=_worker, args=(child,), daemon=True)
+        self.proc.start()
+        if not (self.conn.poll(300) and self.conn.recv() == "ready"):
+            raise RuntimeError("the stability worker process did not start")
+
+    def run(self, job, hard_limit):
+        """The job's record, or ``{"outcome", "message"}`` when the worker was killed or died."""
+        self.conn.send(job)
+        if self.conn.poll(hard_limit):
+            try:
+                return self.conn.recv()
+            except EOFError:  # the worker died (e.g. killed by the system, or a crash in compiled code)
+                self.proc.join(5)
+                failure = {"outcome": "WorkerDied", "message": f"worker process died (exit code {self.proc.exitcode})"}
+        else:
+            failure = {"outcome": "HardTimeLimit", "message": f"worker killed after {hard_limit:.0f} s"}
+        self.proc.kill()
+        self.proc.join()
+        self._start()
+        return failure
+
+    def close(self):
+        try:
+            self.conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(5)
+        if self.proc.is_alive():
+            self.proc.kill()
+
+
+# --------------------------------------------------------------------------- matrix
+
+
+def select_runs(quick=False, big=True, only=None):
+    runs = []
+    for case in CASES:
+        if (case.big and (not big or quick)) or (quick and not case.quick):
+            continue
+        if only and not any(s.lower() in case.name.lower() for s in only):
+            continue
+        for kind in case.paths:
+            for law in case.laws:
+                runs.append((case, kind, law))
+    return runs
+
+
+def run_matrix(runs, n, seed, inc, soft_limit, hard_limit, in_process=False, log=print):
+    records = []
+    worker = None if in_process else Worker()
+    try:
+        for i, (case, kind, law) in enumerate(runs, 1):
+            job = (case, kind, law, case.n or n, seed, case.inc or inc, soft_limit)
+            t0 = time.perf_counter()
+            rec = run_one(*job) if in_process else worker.run(job, hard_limit)
+            if "case" not in rec:  # killed at the hard limit, or died: record why
+                rec = {**empty_record(case, kind, law, case.n or n), **rec, "wall_time_s": time.perf_counter() - t0}
+            records.append(rec)
+            log(f"[{i:3d}/{len(runs)}] {case.name:42s} {kind:14s} {law:5s} {rec['outcome']:26s} "
+                f"it {rec['iter_max']:3d}/{rec['iter_mean']:5.2f} {rec['wall_time_s']:7.2f} s")
+    finally:
+        if worker is not None:
+            worker.close()
+    return records
+
+
+def to_dataset(records, attrs):
+    import xarray as xr
+
+    cols = {k: [r[k] for r in records] for k in records[0]}
+    units = {"n": "1", "all_converged": "1", "steps": "1", "iter_max": "1", "iter_mean": "1", "residual_max": "1", "residual_final": "1",
+             "cutbacks": "1", "wall_time_s": "s", "sigma_n": "Pa", "d": "m"}
+    long = {"case": "case name", "path": "load path", "law": "asperity law", "n": "asperities sampled",
+            "expected": "expected outcome", "outcome": "outcome (complete or exception class)",
+            "message": "exception message", "steps": "converged increments",
+            "all_converged": "1 when every increment of the path converged",
+            "iter_max": "largest Newton iterations of an increment", "iter_mean": "mean Newton iterations",
+            "residual_max": "largest final scaled residual of an increment",
+            "residual_final": "final scaled residual of the last increment", "cutbacks": "increment halvings",
+            "nonfinite": "outputs holding NaN or inf (empty: none)", "wall_time_s": "wall time",
+            "sigma_n": "normal stress of the stress-controlled paths", "d": "closure of the 3-step path",
+            "verdict": "pass, or why not"}
+    data = {}
+    for k, v in cols.items():
+        a = np.array(v, dtype=object if isinstance(v[0], str) else None)
+        if a.dtype == object:
+            a = a.astype(str)
+        data[k] = ("run", a, {"long_name": long[k], **({"units": units[k]} if k in units else {})})
+    return xr.Dataset(data, coords={"run": np.arange(len(records))}, attrs=attrs)
+
+
+def _cell(recs):
+    if not recs:
+        return ""
+    r = recs[0]
+    mark = "ok" if r["verdict"] == "pass" else "**FAIL**"
+    if r["outcome"] == "complete":
+        return f"{mark} {r['iter_max']}/{r['iter_mean']:.1f}"
+    return f"{mark} {r['outcome'].replace('Error', '')}"
+
+
+def markdown(records, header):
+    kinds = [k for k in PATHS if any(r["path"] == k for r in records)]
+    cols = [(k, law) for k in kinds for law in LAWS if any(r["path"] == k and r["law"] == law for r in records)]
+    lines = [header, "",
+             "Cells: verdict, then Newton iterations per increment (max/mean) of a run that completed, "
+             "or the exception that stopped it (expected for `above_strength` and `tension` only, unless a case says "
+             "otherwise).", "",
+             "| case | " + " | ".join(f"{k} {law}" for k, law in cols) + " |",
+             "|---|" + "---|" * len(cols)]
+    for name in dict.fromkeys(r["case"] for r in records):
+        cells = [_cell([r for r in records if r["case"] == name and r["path"] == k and r["law"] == law])
+                 for k, law in cols]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", "### The cases", ""]
+    for case in CASES:
+        if any(r["case"] == case.name for r in records):
+            what = ("with " + ", ".join(f"{k} = {v:.6g}" for k, v in case.changes.items())) if case.changes else "as is"
+            extra = [f"n = {case.n:g}" if case.n else "", f"policy {case.policy}" if case.policy != "follow" else "",
+                     f"sigma_n = {case.sigma_n}" if case.sigma_n is not None else ""]
+            extra = "; ".join(e for e in extra if e)
+            lines.append(f"- **{case.name}**: {case.base} {what}{'; ' + extra if extra else ''}"
+                         f"{'. ' + case.note if case.note else ''}")
+    lines += ["", "### Every run", "",
+              "| case | path | law | n | outcome | expected | iters max/mean | residual final (max) | cut-backs "
+              "| NaN/inf | wall [s] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in records:
+        lines.append(f"| {r['case']} | {r['path']} | {r['law']} | {r['n']:g} | {r['outcome']} | {r['expected']} | "
+                     f"{r['iter_max']}/{r['iter_mean']:.2f} | {r['residual_final']:.1e} ({r['residual_max']:.1e}) | "
+                     f"{r['cutbacks']} | {r['nonfinite'] or 'none'} | {r['wall_time_s']:.2f} |")
+    msgs = [r for r in records if r["outcome"] != "complete"]
+    if msgs:
+        lines += ["", "### Why the runs that stopped stopped", ""]
+        for r in msgs:
+            lines.append(f"- {r['case']}, {r['path']}, {r['law']}: `{r['outcome']}`: {r['message'][:400]}")
+    return "\n".join(lines) + "\n"
+
+
+def _extra(p):
+    p.add_argument("--no-big", action="store_true", help="skip the 1e7-asperity cases")
+    p.add_argument("--only", action="append", default=None, help="run only cases whose name contains this")
+    p.add_argument("--soft-limit", type=float, default=60.0, help="wall-time limit per run [s] (default 60)")
+    p.add_argument("--hard-limit", type=float, default=180.0,
+                   help="worker killed after this many seconds per run [s] (default 180)")
+    p.add_argument("--in-process", action="store_true", help="no worker process (no hard limit)")
+
+
+def main(argv=None):
+    from asperity_sim import __version__
+    from asperity_sim.io import write_netcdf
+    from asperity_sim.params import check_real
+    from asperity_sim.solver import SolverSettings
+
+    args = parse_args(__doc__.splitlines()[0], n_default=2000, argv=argv, extra=_extra)
+    for name in ("soft_limit", "hard_limit"):
+        try:
+            check_real(f"--{name.replace('_', '-')} [s]", getattr(args, name), 0.0, None, lo_open=True)
+        except ValueError as err:
+            print(f"stability.py: error: {err}", file=sys.stderr)
+            raise SystemExit(2)
+    inc = args.increments or (3 if args.quick else 6)
+    runs = select_runs(quick=args.quick, big=not args.no_big, only=args.only)
+    if not runs:
+        print(f"stability.py: error: --only {args.only} selects no case", file=sys.stderr)
+        raise SystemExit(2)
+    t0 = time.perf_counter()
+    records = run_matrix(runs, args.n, args.seed, inc, args.soft_limit, args.hard_limit, args.in_process)
+    total = time.perf_counter() - t0
+    s = SolverSettings()
+    cap = s.max_iter + s.max_expansions + 2 * s.max_iter  # scalar search + multi-component solve and its restart
+    for r in records:
+        r["verdict"] = verdict(r, cap)
+    n_pass = sum(r["verdict"] == "pass" for r in records)
+    header = (f"Stability matrix: {len(records)} runs, {n_pass} pass, n = {args.n} unless stated, "
+              f"{inc} increments per stage (asperity_sim {__version__}, {total:.0f} s on this machine)")
+    attrs = {"title": "asperity_sim stability matrix", "source": f"asperity_sim {__version__}",
+             "Conventions": "CF-1.8", "n_default": args.n, "seed": args.seed, "increments": inc,
+             "total_wall_time_s": total, "runs_passed": n_pass, "runs": len(records)}
+    args.outdir.mkdir(parents=True, exist_ok=True)
+    nc = write_netcdf(to_dataset(records, attrs), args.outdir / "stability.nc")
+    md = args.outdir / "stability.md"
+    text = markdown(records, header)
+    tmp = md.with_name(f".{md.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(md)
+    print()
+    print(text)
+    print(f"wrote {nc}, {md}")
+    return 0 if n_pass == len(records) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
