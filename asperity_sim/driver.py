@@ -252,6 +252,10 @@ class _Run:
         if self.history is not None:
             self.attrs["springs_per_contact"] = self.history.k
         _stderr_attrs(self.attrs, pop.n)
+        self.attrs["increments_at_resolution"] = 0  # residual above rtol, accepted at the resolution of Delta
+        self.attrs["increments_at_resolution_note"] = (
+            "increments whose stress target no representable Delta meets to rtol (contact overlaps far below "
+            "Delta); accepted at the floating-point resolution of Delta, their residual is recorded")
         self.delta = np.zeros(3)
         self.ev = self.evaluate_at(self.delta)
         self.energy = {"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, "coarsenings": 0,
@@ -411,6 +415,8 @@ class _Run:
                         pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, _ramped(free, pos.start_stress, end)))
                     _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
                             residual=result.residual, cutbacks=cuts, **self.energy)
+                    if result.residual > settings.rtol:  # accepted at the floating-point resolution of Delta
+                        attrs["increments_at_resolution"] = attrs.get("increments_at_resolution", 0) + 1
                     step = rec.size - 1
                     if step in self.snap_steps or (self.snap_stage_ends and s_new >= 1.0 - 1e-12):
                         self.take_snapshot(step)

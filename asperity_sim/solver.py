@@ -11,10 +11,12 @@ Safeguards:
 - floating-point resolution: when Delta_f - r of the few contacts that carry the load is
   far below Delta_f itself (a stress of 1 Pa on a stiff interface: overlaps of 1e-11 m at
   Delta ~ 1e-6 m), the stress is quantised along Delta_f: one ulp of Delta_f moves it by
-  more than ``rtol``.  An iterate whose Newton step is within ``RESOLUTION_ULPS`` ulps of
-  Delta_f is then accepted if its residual is below ``resolution_rtol`` (the recorded
-  residual says how close it is); a larger residual there is a real discontinuity and
-  fails;
+  more than ``rtol``, and no representable Delta_f meets it.  The solution counts as
+  pinned when the Newton step is within ``RESOLUTION_ULPS`` ulps of Delta_f or a sign
+  change of the residual is bracketed within about 4 ulps; it is then accepted if its
+  residual is below ``resolution_rtol`` (1e-4 by default; the driver records the residual
+  of every increment and counts those accepted this way), and anything larger there is a
+  discontinuity and fails by name;
 - one free component: Newton inside a sign-change bracket, bisection when Newton leaves
   it, and a doubling search for the bracket when the tangent is zero (first contact
   under stress control) or points the wrong way;
@@ -49,7 +51,8 @@ class SolverSettings:
         scales; a target not met within it is unreachable (bounds the cost of a trial
         evaluation, which grows with the overlap for history laws)
     resolution_rtol : largest scaled residual accepted when the solution is pinned to within
-        the floating-point resolution of Delta (see the module docstring; never below rtol)
+        the floating-point resolution of Delta (see the module docstring; never below rtol;
+        set it to rtol to accept nothing beyond rtol)
     """
 
     rtol: float = 1e-10
@@ -58,7 +61,7 @@ class SolverSettings:
     max_expansions: int = 60
     max_step: float = 2.0
     max_cutbacks: int = 12
-    resolution_rtol: float = 1e-6
+    resolution_rtol: float = 1e-4
     max_search: float = 1e4
 
     def __post_init__(self):

@@ -139,6 +139,9 @@ CASES = (
          paths=("cns", "cyclic", "above_strength"), quick=False, expect={"above_strength": "complete"},
          note="contacts up to 90 degrees: no finite shear strength, 3 sigma_n of shear is carried"),
     Case("G=1e13, sigma_n=1 Pa, zero load", {"G": 1e13}, sigma_n=1.0, paths=("cns", "zero_load")),
+    Case("sigma_n=1 mPa, G=1e13, N=1e12", {"G": 1e13, "N": 1e12}, sigma_n=1e-3, paths=("cns", "cyclic", "zero_load"),
+         note="overlaps of 1e-15 m at Delta ~ 5e-6 m: sigma_1 moves by 1e-5 per ulp of Delta, so increments "
+              "converge at the floating-point resolution of Delta (residual recorded)"),
     Case("e=0, alpha=-0.999, N=1e12, mu=10", {"e": 0.0, "alpha": -0.999, "N": 1e12, "mu": 10.0},
          paths=DEFAULT_PATHS + ("above_strength",), quick=False),
     Case("mu=0, e=0, stress-controlled shear", {"mu": 0.0, "e": 0.0}, paths=("stress_shear", "tension")),

@@ -252,6 +252,8 @@ def test_one_pascal_on_a_stiff_interface_converges_at_the_resolution_of_delta():
     assert ds.attrs["status"] == "complete" and all_finite(ds)
     s = SolverSettings()
     assert np.all(ds.residual.values <= s.resolution_rtol)
+    at_resolution = int((ds.residual.values > s.rtol).sum())
+    assert at_resolution > 0 and ds.attrs["increments_at_resolution"] == at_resolution  # counted, not silent
     assert ds.n_contact.values[-1] <= 3  # a handful of contacts carry 1 Pa
     np.testing.assert_allclose(ds.stress.values[1:, 0][ds.stage.values[1:] == 2], 1.0, rtol=s.resolution_rtol)
 
