@@ -96,6 +96,8 @@ def main(argv=None):
                 "run_peak_traced": r["run_peak_traced"] / n,
                 "rss_growth": (r["rss_after_run"] - r["rss_after_imports"]) / n,
                 "dataset": r["dataset_bytes"] / n,
+                # bytes per asperity of a full population with the same variance (band: n / P asperities)
+                "population_per_equivalent_full": r["population_bytes"] * r["band_probability"] / n,
             }
             rows.append(r)
             pa = r["per_asperity"]
