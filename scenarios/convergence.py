@@ -43,7 +43,9 @@ Methods (all in one run, same machine, same number of threads):
 Wall time: sampling + simulate (or the whole grid run), warm numba cache (every kernel is
 run once before timing), 2 threads; the reference quadrature is not timed.
 Settings: Newton tolerance rtol = 1e-9 (relative residual of the prescribed stress) for both
-Monte Carlo (SolverSettings) and the grid.
+Monte Carlo (SolverSettings) and the grid; OMP_WAIT_POLICY=PASSIVE (set below unless already
+set: with the default spinning policy a small parallel region took ~10 ms instead of ~0.1 ms
+whenever other processes shared the cores).
 
 Sizes and replicas (chosen to keep the full study near 12 minutes on the 2-core machine):
 n = 2^10 ... 2^20 (1024 ... 1 048 576) in factors of 4; 4 replicas up to 2^16, 3 at 2^18 and
@@ -54,7 +56,8 @@ displacement-controlled Fig. 11 (one evaluation per increment; s = 0.5 takes ~75
 reaches 6.5e-7) and 4, 2, 1.4, 1 for the closure (s = 0.7 takes ~10 min there: 1e9 points
 per evaluation and ~10 evaluations per increment).
 
-Run:   python scenarios/convergence.py            (full study, ~12 min on 2 idle cores)
+Run:   python scenarios/convergence.py            (full study: 12.8 min on this 2-core machine at load
+                                                   average 2-3, 26 min at load 4-5)
        python scenarios/convergence.py --quick    (tiny smoke run, < 1 min)
 Writes outputs/convergence.nc (dims method, n, replica, quantity; wall_time over method, n,
 replica, scene), outputs/convergence.png (log-log error of the curve against wall time, one
