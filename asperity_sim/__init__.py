@@ -7,6 +7,12 @@ Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Populatio
 
 __version__ = "0.1.0"
 
+import os as _os
+
+# Idle OpenMP threads of numba's parallel kernels spin by default and steal the cores from
+# other processes (sweep workers, other jobs); sleeping costs microseconds per kernel call.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 from . import paths, presets, reference
 from .params import InterfaceParams
 from .population import Population
