@@ -26,6 +26,17 @@ def loaded_history(params=R1, n=3000, seed=1, k=16):
     return pop, hist
 
 
+def fd_tangent(pop, d, h=1e-7 * um, **kw):
+    """Central finite differences of the stress at displacement d [m], trial evaluations only."""
+    T = np.empty((3, 3))
+    for k in range(3):
+        dp, dm = d.copy(), d.copy()
+        dp[k] += h
+        dm[k] -= h
+        T[:, k] = (evaluate(pop, dp, **kw).stress - evaluate(pop, dm, **kw).stress) / (2 * h)
+    return T
+
+
 def test_trial_evaluation_never_changes_committed_history():
     pop, hist = loaded_history()
     before = {name: getattr(hist, name).copy() for name in ("slot", "w", "h", "dn_c", "state_c", "delta_c")}
@@ -43,14 +54,7 @@ def test_mdr_tangent_against_finite_differences(trial_um):
     d = np.array(trial_um) * um
     ev = evaluate(pop, d, law="mdr", history=hist)
     assert ev.n_contact > 0
-    T_fd = np.empty((3, 3))
-    h = 1e-7 * um
-    for k in range(3):
-        dp, dm = d.copy(), d.copy()
-        dp[k] += h
-        dm[k] -= h
-        T_fd[:, k] = (evaluate(pop, dp, law="mdr", history=hist).stress
-                      - evaluate(pop, dm, law="mdr", history=hist).stress) / (2 * h)
+    T_fd = fd_tangent(pop, d, law="mdr", history=hist)
     assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
 
 
@@ -184,12 +188,5 @@ def test_mdr_birth_tangent_against_finite_differences():
         birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, ev.n_active, d, R1.r_o, R1.k_e, tb)
     d = np.array([16, 5, 1]) * um
     ev = evaluate(pop, d, law="mdr", policy="birth", theta_birth=tb, history=hist)
-    T_fd = np.empty((3, 3))
-    h = 1e-7 * um
-    for k in range(3):
-        dp, dm = d.copy(), d.copy()
-        dp[k] += h
-        dm[k] -= h
-        T_fd[:, k] = (evaluate(pop, dp, law="mdr", policy="birth", theta_birth=tb, history=hist).stress
-                      - evaluate(pop, dm, law="mdr", policy="birth", theta_birth=tb, history=hist).stress) / (2 * h)
+    T_fd = fd_tangent(pop, d, law="mdr", policy="birth", theta_birth=tb, history=hist)
     assert np.allclose(ev.tangent, T_fd, rtol=1e-6, atol=1e-6 * np.abs(T_fd).max())
