@@ -18,7 +18,7 @@ import math
 import numbers
 import warnings
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numba
 import numpy as np
@@ -86,9 +86,61 @@ def _phi_from_uniform(p, x, b, c, d):
     return out
 
 
+# Inverse gamma CDF by table: cubic Hermite interpolation of the quantile function x(p)
+# (nodes and slopes dx/dp = 1/pdf(x) exact from scipy) on [P_LO, P_HI]; scipy's gammaincinv
+# (about 0.45 s per million) outside it.  The table is checked against gammaincinv at every
+# cell midpoint when built and used only if it is within TABLE_RTOL there (about 1e-14 for
+# the presets; shapes far below 1, whose quantile is too steep near p = 0, fall back to scipy).
+P_LO, P_HI, N_NODES = 0.02, 0.98, 2**15
+TABLE_RTOL = 1e-13
+
+
+@lru_cache(maxsize=8)
+def _quantile_table(shape: float):
+    """(nodes Q(p_k), slopes Q'(p_k)) of the unit-scale gamma quantile, p_k uniform on [P_LO, P_HI]; None if not accurate."""
+    p = np.linspace(P_LO, P_HI, N_NODES + 1)
+    x = special.gammaincinv(shape, p)
+    with np.errstate(over="ignore"):
+        slope = np.exp(-stats.gamma.logpdf(x, shape))
+    if not np.all(np.isfinite(slope)):
+        return None
+    mid = 0.5 * (p[1:] + p[:-1])
+    got = np.empty_like(mid)
+    _hermite_quantile(mid, x, slope, P_LO, (P_HI - P_LO) / N_NODES, got)
+    exact = special.gammaincinv(shape, mid)
+    if not np.all(np.abs(got - exact) <= TABLE_RTOL * exact):
+        return None
+    return x, slope
+
+
+@numba.njit(cache=True, parallel=True)
+def _hermite_quantile(p, x_nodes, slopes, p_lo, h, out):
+    """out = cubic Hermite interpolant of the tabulated quantile at p (NaN outside the table)."""
+    n_cells = x_nodes.size - 1
+    for i in numba.prange(p.size):
+        t = (p[i] - p_lo) / h
+        if not (0.0 <= t <= n_cells):
+            out[i] = np.nan
+            continue
+        k = min(int(t), n_cells - 1)
+        s = t - k
+        s2, s3 = s * s, s * s * s
+        out[i] = ((2.0 * s3 - 3.0 * s2 + 1.0) * x_nodes[k] + (s3 - 2.0 * s2 + s) * h * slopes[k]
+                  + (-2.0 * s3 + 3.0 * s2) * x_nodes[k + 1] + (s3 - s2) * h * slopes[k + 1])
+
+
 def heights_from_uniform(params: InterfaceParams, p):
-    """Gamma heights r [m] (shape alpha+1, scale beta) from uniforms, SPEC §2."""
-    return special.gammaincinv(params.alpha + 1.0, p) * params.beta
+    """Gamma heights r [m] (shape alpha+1, scale beta) from uniforms, SPEC §2 (inverse CDF)."""
+    p = np.ascontiguousarray(p, dtype=float)
+    shape = params.alpha + 1.0
+    table = _quantile_table(shape)
+    if table is None:
+        return special.gammaincinv(shape, p) * params.beta
+    x = np.empty_like(p)
+    _hermite_quantile(p, table[0], table[1], P_LO, (P_HI - P_LO) / N_NODES, x)
+    tail = np.isnan(x)
+    x[tail] = special.gammaincinv(shape, p[tail])
+    return x * params.beta
 
 
 def band_probability(params: InterfaceParams, r_max) -> float:
