@@ -52,3 +52,26 @@ def test_scenario_rejects_bad_options(capsys):
         module.main(["--n", "0"])
     assert err.value.code != 0
     assert "--n = 0" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_convergence_study_quick_run(tmp_path, capsys):
+    """The error-against-time study (issue 5) at smoke size: every method, every scene, its three outputs."""
+    module = importlib.import_module("convergence")
+    assert module.main(["--quick", "--outdir", str(tmp_path)]) == 0
+    ds = xr.open_dataset(tmp_path / "convergence.nc", engine="netcdf4")
+    assert set(ds["error"].dims) == {"method", "n", "replica", "quantity"}
+    assert set(ds.method.values) == {"mc", "rqmc", "pruned", "pruned_mc", "grid"}
+    for var in ("error", "wall_time", "rms_error", "mean_wall_time"):
+        assert ds[var].attrs["units"] and ds[var].attrs["long_name"]
+    for m in ds.method.values:
+        e = ds["rms_error"].sel({"method": m}).values
+        assert np.all(e[np.isfinite(e)] >= 0.0) and np.isfinite(e).any()
+    # randomised QMC on a smooth scene: 4x the points must cut the RMS curve error
+    e = ds["rms_error"].sel({"method": "rqmc", "quantity": "fig13_S1/curve"}).values
+    e = e[np.isfinite(e)]
+    assert e[-1] < e[0]
+    ds.close()
+    table = (tmp_path / "convergence.md").read_text()
+    assert "| fig13_R1 | rqmc |" in table and "Speed-up" in table
+    assert (tmp_path / "convergence.png").stat().st_size > 0
