@@ -182,6 +182,19 @@ def orientation_from_uniform(params: InterfaceParams, p_u, p_phi):
     return u, phi
 
 
+@numba.njit(cache=True, parallel=True)
+def _sorted_by_height(r, R, u, phi, order):
+    """The arrays of a population permuted by ``order``, phi stored as its cosine and sine."""
+    n = order.size
+    out = [np.empty(n) for _ in range(5)]
+    r_s, R_s, u_s, c_s, s_s = out[0], out[1], out[2], out[3], out[4]
+    for i in numba.prange(n):
+        j = order[i]
+        r_s[i], R_s[i], u_s[i] = r[j], R[j], u[j]
+        c_s[i], s_s[i] = math.cos(phi[j]), math.sin(phi[j])
+    return r_s, R_s, u_s, c_s, s_s
+
+
 def unit_points(n: int, seed, sampler: str) -> np.ndarray:
     """n points of [0, 1)^4 from the chosen sampler (the only random source)."""
     if sampler == "random":
@@ -260,14 +273,14 @@ class Population:
             r = np.minimum(r, r_band)  # the inverse CDF may round up past the band edge
         R = radii_from_uniform(params, U[:, 1])
         u, phi = orientation_from_uniform(params, U[:, 2], U[:, 3])
-        order = np.argsort(r, kind="stable")
+        r, R, u, cos_phi, sin_phi = _sorted_by_height(r, R, u, phi, np.argsort(r, kind="stable"))
         return cls(
             params=params,
-            r=np.ascontiguousarray(r[order]),
-            R=np.ascontiguousarray(R[order]),
-            u=np.ascontiguousarray(u[order]),
-            cos_phi=np.ascontiguousarray(np.cos(phi[order])),
-            sin_phi=np.ascontiguousarray(np.sin(phi[order])),
+            r=r,
+            R=R,
+            u=u,
+            cos_phi=cos_phi,
+            sin_phi=sin_phi,
             weight=p_band / n,
             seed=seed,
             sampler=sampler,
