@@ -43,7 +43,7 @@ SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) t
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
 I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
 N_ACC = 22
-_FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+_FF_SYM = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])  # (i, j) -> position of f_i f_j among the products
 POLICIES = ("follow", "birth")
 LAWS = ("paper", "mdr")
 
@@ -598,8 +598,12 @@ def _finish(pop, d, s, n_active) -> Evaluation:
         # covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n = (N w)² n C_f
         # (numpy floats, in this order: a huge N w gives inf, never an OverflowError, and 0 stays 0)
         scale64 = np.float64(scale)
-        for (i, j), sum_ff in zip(_FF_PAIRS, s[I_FF:I_FF + 6]):
-            cov[i, j] = cov[j, i] = (sum_ff - sum_f[i] * sum_f[j] / n) / (n - 1) * scale64 * scale64 * n
+        sum_ff = s[I_FF:I_FF + 6][_FF_SYM]
+        if scale64 < 1e100:
+            cov = (sum_ff - np.outer(sum_f, sum_f) / n) / (n - 1) * scale64 * scale64 * n
+        else:
+            with np.errstate(over="ignore"):
+                cov = (sum_ff - np.outer(sum_f, sum_f) / n) / (n - 1) * scale64 * scale64 * n
     stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
     n_contact = int(round(s[I_NC]))
     return Evaluation(

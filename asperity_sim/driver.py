@@ -16,6 +16,7 @@ bit-identically (:mod:`asperity_sim.checkpoint`, :func:`resume`).
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import numbers
 import os
 import time
@@ -549,6 +550,17 @@ def solution_stderr(ev, free):
     free = np.asarray(free, dtype=bool)
     if not free.any():
         return ev.stderr, np.zeros(3)
+    if free.sum() == 1:  # the common case, in closed form (same formulas, no pinv)
+        k = int(np.flatnonzero(free)[0])
+        t_kk = ev.tangent[k, k]
+        a = 1.0 / t_kk if t_kk != 0.0 and math.isfinite(1.0 / t_kk) else 0.0
+        C = ev.covariance
+        g = ev.tangent[:, k] * a  # dsigma_i = dsigma_i - g_i dsigma_k for the fixed i
+        var_s = np.diag(C) - 2.0 * g * C[:, k] + g * g * C[k, k]
+        var_s[k] = 0.0
+        var_d = np.zeros(3)
+        var_d[k] = a * a * C[k, k]
+        return np.sqrt(np.maximum(var_s, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
     fixed = ~free
     A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
     M_stress = np.zeros((3, 3))
@@ -605,6 +617,15 @@ def _predict(ev, delta, target_delta, target_stress, free):
     if not free.any():
         return guess
     fixed = ~free
+    if free.sum() == 1:  # the common case without the SVD of cond
+        k = int(np.flatnonzero(free)[0])
+        rhs = target_stress[k] - ev.stress[k] - ev.tangent[k, fixed] @ (target_delta - delta)[fixed]
+        t_kk = ev.tangent[k, k]
+        if t_kk != 0.0 and math.isfinite(t_kk):
+            step = rhs / t_kk
+            if math.isfinite(step):
+                guess[k] = delta[k] + step
+        return guess
     rhs = (target_stress - ev.stress)[free] - ev.tangent[np.ix_(free, fixed)] @ (target_delta - delta)[fixed]
     T = ev.tangent[np.ix_(free, free)]
     try:
@@ -630,6 +651,9 @@ def effective_stiffness(ev, free, ramped):
     The inverse of the ramped block of the compliance T_ff^-1; 0 where T_ff is singular.
     """
     idx = np.flatnonzero(free)
+    if idx.size == 1:  # one stress-controlled component: its own stiffness
+        t_kk = float(ev.tangent[idx[0], idx[0]])
+        return t_kk if math.isfinite(t_kk) else 0.0
     pos = [int(np.flatnonzero(idx == k)[0]) for k in ramped]
     try:
         C = np.linalg.inv(ev.tangent[np.ix_(idx, idx)])
