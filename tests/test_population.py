@@ -486,3 +486,20 @@ def test_tabulated_height_quantile_matches_gammaincinv(alpha):
     got = heights_from_uniform(params, p)
     assert np.all(np.abs(got - exact) <= 1e-13 * exact)
     assert np.all(np.diff(got[np.argsort(p)]) >= 0.0)  # monotone: sorting by p sorts by height
+
+
+def test_linear_time_argsort_of_unit_points_is_numpys_stable_argsort():
+    from asperity_sim.population import _argsort_unit
+
+    rng = np.random.default_rng(11)
+    for p in (rng.random(50_000), np.repeat(rng.random(500), 7), np.zeros(10), np.array([0.5])):
+        np.testing.assert_array_equal(_argsort_unit(p), np.argsort(p, kind="stable"))
+
+
+def test_sobol_points_drawn_in_blocks_equal_one_draw():
+    from asperity_sim.population import SOBOL_BLOCK
+
+    n = SOBOL_BLOCK + 12345
+    with pytest.warns(UserWarning, match="balance"):
+        one = stats.qmc.Sobol(d=4, scramble=True, seed=5).random(n)
+    np.testing.assert_array_equal(unit_points(n, 5, "sobol"), one)
