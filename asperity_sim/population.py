@@ -337,8 +337,12 @@ class Population:
     @classmethod
     def from_arrays(cls, params: InterfaceParams, r, R, u, phi) -> "Population":
         """A population of given asperities (heights r [m], radii R [m], u [rad], phi [rad]), equally weighted."""
+        if not isinstance(params, InterfaceParams):
+            raise ValueError(f"params = {params!r} is not an InterfaceParams")
         arrays = [np.atleast_1d(np.asarray(a, dtype=float)) for a in (r, R, u, phi)]
         n = arrays[0].size
+        if n == 0:
+            raise ValueError("r is empty: a population needs at least one asperity (valid range: n >= 1)")
         names = ("r", "R", "u", "phi")
         for name, a in zip(names, arrays):
             if a.shape != (n,) or not np.all(np.isfinite(a)):

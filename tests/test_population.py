@@ -503,3 +503,10 @@ def test_sobol_points_drawn_in_blocks_equal_one_draw():
     with pytest.warns(UserWarning, match="balance"):
         one = stats.qmc.Sobol(d=4, scramble=True, seed=5).random(n)
     np.testing.assert_array_equal(unit_points(n, 5, "sobol"), one)
+
+
+def test_from_arrays_rejects_bad_params_and_empty_arrays():
+    with pytest.raises(ValueError, match="InterfaceParams"):
+        Population.from_arrays({"alpha": 1.0}, [1e-6], [1e-4], [0.1], [0.2])
+    with pytest.raises(ValueError, match="empty"):
+        Population.from_arrays(presets.R1, [], [], [], [])
