@@ -9,13 +9,10 @@ array, so the result does not depend on the number of threads.
 Speed (``paper`` law, issue 5): an asperity above the closure is dropped before any
 trigonometry when it cannot touch at the largest angle in use (:func:`cannot_touch`) or,
 under policy follow, at its own largest angle (:func:`cannot_touch_follow`, from
-cos theta_m = 1 - k_e c / R alone).  Under policy follow the remaining asperities go
-through a branch-free loop that LLVM vectorises (:func:`paper_chunk_follow`: series
-trigonometry, selects instead of branches, sums in registers), about 4x faster per contact
-than the scalar libm loop kept for policy birth (:func:`paper_chunk_birth`); the two agree
-to round-off (tests/test_assemble.py).  Chunks go to the threads in a strided order
-(:func:`chunk_stride`) so that both threads get low (costly, in contact) and high (cheap)
-heights; small workloads run on the calling thread (:func:`assemble_paper_serial`).
+cos theta_m = 1 - k_e c / R alone); d theta / d Delta_1 is computed for contacts only;
+chunks go to the threads in a strided order (:func:`chunk_stride`) so that both threads get
+low (costly, in contact) and high (cheap) heights; small workloads run on the calling
+thread (:func:`assemble_paper_serial`).  None of this changes a result.
 
 Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
 Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
@@ -33,7 +30,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import SIMD_FASTMATH, acos_unit, local_displacement, sin_cos_quarter, theta_m_and_slope
+from .geometry import local_displacement, theta_m_and_slope
 from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
 
@@ -193,9 +190,9 @@ def chunk_stride(n_chunks):
 
 
 @numba.njit(cache=True, inline="always")
-def paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                      theta_birth, tan_max, partial):
-    """Row ic of ``partial`` under policy birth: the sums of :func:`accumulate` over chunk ic."""
+def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                theta_birth, has_birth, tan_max, partial):
+    """Row ic of ``partial``: the sums of :func:`accumulate` over asperities ic*CHUNK .. of chunk ic."""
     acc = np.zeros(N_ACC)
     J = np.zeros((3, 3))
     for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
@@ -203,11 +200,30 @@ def paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closu
         x = d1 - r[j]
         if cannot_touch(x, cp * d2 + sp * d3, tan_max):
             continue
-        th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, True)
+        inv_R = 1.0 / R[j]
+        y = 1.0  # cos(theta_m) under policy follow; unused under birth
+        if has_birth:
+            th, th1 = contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+        else:
+            # asperity_theta without the slope (needed for contacts only, below)
+            y = 1.0 - k_e * closure * inv_R
+            if cannot_touch_follow(x, cp * d2 + sp * d3, y, u[j] / (0.5 * math.pi)):
+                continue
+            if y >= 1.0:
+                th_m = 0.0
+            elif y <= 0.0:
+                th_m = 0.5 * math.pi
+            else:
+                th_m = math.acos(y)
+            th = u[j] / (0.5 * math.pi) * th_m
+            th1 = 0.0
         ct, st = math.cos(th), math.sin(th)
         dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
         if dn <= 0.0:
             continue
+        if not has_birth and 0.0 < y < 1.0:
+            # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
+            th1 = u[j] / (0.5 * math.pi) * (k_e * inv_R / math.sqrt((1.0 - y) * (1.0 + y))) * dc
         f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
             dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
         dst = math.sqrt(ds * ds + dt * dt)
@@ -224,139 +240,6 @@ def paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closu
         accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, state)
         acc[20] += th
     partial[ic, :] = acc
-
-
-@numba.njit(cache=True, fastmath=SIMD_FASTMATH, error_model="numpy")
-def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                       partial):
-    """Row ic of ``partial`` under policy follow: :func:`paper_local` + :func:`accumulate`, vectorised.
-
-    Two passes.  The first keeps the asperities :func:`cannot_touch_follow` cannot rule out
-    (no trigonometry; skipped when the whole chunk lies below the closure, as the heights are
-    sorted).  The second is branch-free so that LLVM vectorises it: every quantity is computed
-    for every kept asperity (trigonometry by :func:`acos_unit` and :func:`sin_cos_quarter`,
-    the stick and slip forms of Eqs. 18–21 both, with safe arguments) and a non-contact's
-    force and Jacobian are selected to zero.  Sums are held in scalars, the same terms as
-    :func:`accumulate` with J[0, 1] = J[0, 2] = 0 (Hertz does not depend on the slip).
-    """
-    lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
-    keep = np.empty(hi - lo, dtype=np.int64)
-    m = 0
-    two_over_pi = 2.0 / math.pi
-    if d1 > r[hi - 1]:
-        for j in range(lo, hi):
-            keep[j - lo] = j
-        m = hi - lo
-    else:
-        for j in range(lo, hi):
-            keep[m] = j
-            x = d1 - r[j]
-            y = 1.0 - k_e * closure / R[j]
-            if not cannot_touch_follow(x, cos_phi[j] * d2 + sin_phi[j] * d3, y, u[j] * two_over_pi):
-                m += 1
-    F0 = F1 = F2 = 0.0
-    P00 = P11 = P22 = P01 = P02 = P12 = 0.0
-    T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
-    n_c = n_s = n_p = th_sum = 0.0
-    c_hertz = (4.0 / 3.0) * E_star
-    lam_mu = lam * mu
-    for i in range(m):
-        j = keep[i]
-        cp, sp = cos_phi[j], sin_phi[j]
-        x = d1 - r[j]
-        shear_ph = cp * d2 + sp * d3
-        dt = -sp * d2 + cp * d3
-        inv_R = 1.0 / R[j]
-        y = 1.0 - k_e * closure * inv_R
-        yc = min(max(y, 0.0), 1.0)
-        scale = u[j] * two_over_pi
-        th = scale * acos_unit(yc)
-        st, ct = sin_cos_quarter(th)
-        dn = ct * x + st * shear_ph
-        ds = -st * x + ct * shear_ph
-        touch = dn > 0.0
-        # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
-        th1 = scale * k_e * inv_R / math.sqrt((1.0 - yc) * (1.0 + yc)) * dc if touch & (y > 0.0) & (y < 1.0) else 0.0
-        dn_safe = dn if touch else 1.0
-        C = c_hertz * math.sqrt(R[j])
-        sq = math.sqrt(dn_safe)
-        f_n = C * dn_safe * sq
-        k_n = 1.5 * C * sq
-        dst = math.sqrt(ds * ds + dt * dt)
-        xs = dst / (lam_mu * dn_safe)
-        stick = xs < 1.0
-        om = math.sqrt(max(1.0 - xs, 0.0))
-        q = (1.0 + om + om * om) / (1.0 + om)
-        k_sec = C * sq * q / lam if stick else (mu * f_n / dst if dst > 0.0 else 0.0)
-        dF_dst = k_n * om / lam if stick else 0.0
-        dF_dn = mu * k_n * xs * (q - om) if stick else mu * k_n
-        inv_dst = 1.0 / dst if dst > 0.0 else 0.0
-        es, et = ds * inv_dst, dt * inv_dst
-        # a non-contact contributes nothing
-        f_n = f_n if touch else 0.0
-        k_n = k_n if touch else 0.0
-        k_sec = k_sec if touch else 0.0
-        extra = dF_dst - k_sec if touch else 0.0
-        dF_dn = dF_dn if touch else 0.0
-        f_s, f_t = k_sec * ds, k_sec * dt
-        J10, J20 = dF_dn * es, dF_dn * et
-        J11, J12, J22 = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
-        n0, n1, n2 = ct, st * cp, st * sp
-        s0, s1, s2 = -st, ct * cp, ct * sp
-        t1, t2 = -sp, cp
-        g0 = f_n * n0 + f_s * s0
-        g1 = f_n * n1 + f_s * s1 + f_t * t1
-        g2 = f_n * n2 + f_s * s2 + f_t * t2
-        k00, k10 = n0 + ds * th1, s0 - dn * th1
-        A00, A01, A02 = k_n * k00, k_n * n1, k_n * n2
-        A10 = J10 * k00 + J11 * k10
-        A11 = J10 * n1 + J11 * s1 + J12 * t1
-        A12 = J10 * n2 + J11 * s2 + J12 * t2
-        A20 = J20 * k00 + J12 * k10
-        A21 = J20 * n1 + J12 * s1 + J22 * t1
-        A22 = J20 * n2 + J12 * s2 + J22 * t2
-        F0 += g0
-        F1 += g1
-        F2 += g2
-        P00 += g0 * g0
-        P11 += g1 * g1
-        P22 += g2 * g2
-        P01 += g0 * g1
-        P02 += g0 * g2
-        P12 += g1 * g2
-        T00 += n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
-        T01 += n0 * A01 + s0 * A11
-        T02 += n0 * A02 + s0 * A12
-        T10 += n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1
-        T11 += n1 * A01 + s1 * A11 + t1 * A21
-        T12 += n1 * A02 + s1 * A12 + t1 * A22
-        T20 += n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
-        T21 += n2 * A01 + s2 * A11 + t2 * A21
-        T22 += n2 * A02 + s2 * A12 + t2 * A22
-        n_c += 1.0 if touch else 0.0
-        n_s += 1.0 if touch & ~stick else 0.0
-        n_p += 1.0 if touch & stick & (dst > 0.0) else 0.0
-        th_sum += th if touch else 0.0
-    row = partial[ic]
-    row[I_F], row[I_F + 1], row[I_F + 2] = F0, F1, F2
-    row[I_FF], row[I_FF + 1], row[I_FF + 2] = P00, P11, P22
-    row[I_FF + 3], row[I_FF + 4], row[I_FF + 5] = P01, P02, P12
-    row[I_T], row[I_T + 1], row[I_T + 2] = T00, T01, T02
-    row[I_T + 3], row[I_T + 4], row[I_T + 5] = T10, T11, T12
-    row[I_T + 6], row[I_T + 7], row[I_T + 8] = T20, T21, T22
-    row[I_NC], row[I_NS], row[I_TH], row[I_NP] = n_c, n_s, th_sum, n_p
-
-
-@numba.njit(cache=True, inline="always")
-def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                theta_birth, has_birth, tan_max, partial):
-    """Row ic of ``partial`` for the ``paper`` law, by policy."""
-    if has_birth:
-        paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                          theta_birth, tan_max, partial)
-    else:
-        paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                           partial)
 
 
 @numba.njit(cache=True, parallel=True)

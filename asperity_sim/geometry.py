@@ -15,45 +15,6 @@ import numpy as np
 
 HALF_PI = 0.5 * math.pi
 
-# Taylor coefficients for the branch-free (SIMD-friendly) trigonometry below.  Truncation
-# errors: sin, cos on [0, pi/2] below 1e-18 (next terms (pi/2)^23/23!, (pi/2)^24/24!);
-# asin on [0, 1/2] below 2e-18 (next term about 0.25^26 / (sqrt(26 pi) 53)).
-SIN_SERIES = np.array([(-1) ** k / math.factorial(2 * k + 1) for k in range(11)])
-COS_SERIES = np.array([(-1) ** k / math.factorial(2 * k) for k in range(12)])
-ASIN_SERIES = np.array([math.factorial(2 * k) / (4 ** k * math.factorial(k) ** 2 * (2 * k + 1)) for k in range(26)])
-# flags for kernels that must vectorise: reductions may be reassociated (the order is still
-# fixed by the code and chunking, so results do not depend on the thread count)
-SIMD_FASTMATH = {"reassoc", "contract", "nsz"}
-
-
-@numba.njit(cache=True, inline="always", fastmath=SIMD_FASTMATH, error_model="numpy")
-def horner(coef, z):
-    """sum_k coef[k] z^k by Horner's rule (fully unrolled by LLVM for constant coefficients)."""
-    p = coef[coef.size - 1]
-    for k in range(coef.size - 2, -1, -1):
-        p = p * z + coef[k]
-    return p
-
-
-@numba.njit(cache=True, inline="always", fastmath=SIMD_FASTMATH, error_model="numpy")
-def sin_cos_quarter(x):
-    """(sin x, cos x) for x in [0, pi/2] without a libm call (vectorisable); error about 2e-16."""
-    z = x * x
-    return x * horner(SIN_SERIES, z), horner(COS_SERIES, z)
-
-
-@numba.njit(cache=True, inline="always", fastmath=SIMD_FASTMATH, error_model="numpy")
-def acos_unit(y):
-    """arccos y for y in [0, 1] without a libm call (vectorisable); error about 4e-16.
-
-    y <= 1/2: pi/2 - asin y; y > 1/2: 2 asin sqrt((1 - y)/2) (1 - y is exact there), so the
-    series is only needed on [0, 1/2] and both cases share one polynomial evaluation.
-    """
-    low = y <= 0.5
-    z = y if low else math.sqrt(0.5 * (1.0 - y))
-    a = z * horner(ASIN_SERIES, z * z)
-    return HALF_PI - a if low else 2.0 * a
-
 
 @numba.njit(cache=True, inline="always")
 def theta_m_and_slope(closure, inv_R, k_e):

@@ -178,21 +178,3 @@ def test_flat_on_rough_against_greenwood_williamson():
         assert abs(ev.stress[0] - gw) < 4 * ev.stderr[0]
         assert ev.mean_theta == 0.0
 
-
-@pytest.mark.parametrize("params", [R1, S1], ids=["R1", "S1"])
-@pytest.mark.parametrize("delta_um", [(18.0, 0.0, 0.0), (15.0, 3.0, 1.0), (13.0, 50.0, 0.0), (15.0, 15.0, 15.0),
-                                      (5.0, -2.0, 7.0), (3.0, 0.0, 40.0)])
-def test_vectorised_follow_kernel_matches_scalar_libm_kernel(params, delta_um):
-    """Policy follow runs a branch-free series-trigonometry kernel; policy birth with no frozen
-    angle is the same physics through the scalar libm kernel.  They must agree to round-off."""
-    pop = Population.sample(params, 20000, seed=7)
-    delta = np.array(delta_um) * um
-    ev_f = evaluate(pop, delta, policy="follow")
-    ev_b = evaluate(pop, delta, policy="birth", theta_birth=np.full(pop.n, np.nan))
-    assert ev_f.n_contact == ev_b.n_contact > 0
-    assert (ev_f.n_slip, ev_f.n_partial) == (ev_b.n_slip, ev_b.n_partial)
-    scale = np.abs(ev_b.stress).max()
-    np.testing.assert_allclose(ev_f.stress, ev_b.stress, rtol=0, atol=1e-12 * scale)
-    np.testing.assert_allclose(ev_f.covariance, ev_b.covariance, rtol=0, atol=1e-11 * np.abs(ev_b.covariance).max())
-    np.testing.assert_allclose(ev_f.tangent, ev_b.tangent, rtol=0, atol=1e-12 * np.abs(ev_b.tangent).max())
-    assert ev_f.mean_theta == pytest.approx(ev_b.mean_theta, rel=1e-13)
