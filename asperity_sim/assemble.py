@@ -441,10 +441,17 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     Law ``mdr`` reads the committed springs of ``history`` (a :class:`~asperity_sim.state.MDRHistory`;
     default: a virgin interface at Delta = 0) and never changes them.
     """
+    from .population import Population
+
+    if not isinstance(pop, Population):
+        raise ValueError(f"pop = {pop!r} is not a Population")
     d = check_delta(delta)
     check_choice("law", law, LAWS)
     check_choice("policy", policy, POLICIES)
     p = pop.params
+    if workspace is not None and (not isinstance(workspace, Workspace)
+                                  or workspace.partial.shape[0] * CHUNK < pop.n):
+        raise ValueError(f"workspace = {workspace!r} is not a Workspace for {pop.n} asperities (use Workspace(pop.n))")
     if policy == "birth" and theta_birth is not None:
         tb = np.asarray(theta_birth, dtype=float)
         if tb.shape != (pop.n,):

@@ -178,3 +178,16 @@ def test_flat_on_rough_against_greenwood_williamson():
         assert abs(ev.stress[0] - gw) < 4 * ev.stderr[0]
         assert ev.mean_theta == 0.0
 
+
+
+def test_evaluate_rejects_wrong_population_and_workspace():
+    from asperity_sim.assemble import Workspace
+
+    pop = Population.sample(R1, 5000, seed=1)
+    with pytest.raises(ValueError, match="not a Population"):
+        evaluate({"r": pop.r}, [1e-6, 0.0, 0.0])
+    with pytest.raises(ValueError, match="Workspace"):
+        evaluate(pop, [1e-6, 0.0, 0.0], workspace=np.zeros((3, 22)))
+    with pytest.raises(ValueError, match="Workspace"):
+        evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(10))
+    assert evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(pop.n)).n_active >= 0
