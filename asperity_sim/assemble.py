@@ -24,6 +24,7 @@ using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -33,6 +34,7 @@ import numpy as np
 from .geometry import local_displacement, theta_m_and_slope
 from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
+from .population import Population
 
 CHUNK = 2048
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) the paper kernel runs serially
@@ -441,8 +443,6 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     Law ``mdr`` reads the committed springs of ``history`` (a :class:`~asperity_sim.state.MDRHistory`;
     default: a virgin interface at Delta = 0) and never changes them.
     """
-    from .population import Population
-
     if not isinstance(pop, Population):
         raise ValueError(f"pop = {pop!r} is not a Population")
     d = check_delta(delta)
@@ -489,11 +489,9 @@ def _finish(pop, d, s, n_active) -> Evaluation:
         # (numpy floats, in this order: a huge N w gives inf, never an OverflowError, and 0 stays 0)
         scale64 = np.float64(scale)
         sum_ff = s[I_FF:I_FF + 6][_FF_SYM]
-        if scale64 < 1e100:
+        # np.errstate costs microseconds per Newton iteration; only a huge scale can overflow
+        with np.errstate(over="ignore") if scale64 >= 1e100 else contextlib.nullcontext():
             cov = (sum_ff - np.outer(sum_f, sum_f) / n) / (n - 1) * scale64 * scale64 * n
-        else:
-            with np.errstate(over="ignore"):
-                cov = (sum_ff - np.outer(sum_f, sum_f) / n) / (n - 1) * scale64 * scale64 * n
     stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
     n_contact = int(round(s[I_NC]))
     return Evaluation(

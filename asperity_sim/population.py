@@ -93,6 +93,7 @@ def _phi_from_uniform(p, x, b, c, d):
 # cell midpoint when built and used only if it is within TABLE_RTOL there (about 1e-14 for
 # the presets; shapes far below 1, whose quantile is too steep near p = 0, fall back to scipy).
 P_LO, P_HI, N_NODES = 0.02, 0.98, 2**15
+H_NODE = (P_HI - P_LO) / N_NODES  # node spacing in p
 TABLE_RTOL = 1e-13
 
 
@@ -107,7 +108,7 @@ def _quantile_table(shape: float):
         return None
     mid = 0.5 * (p[1:] + p[:-1])
     got = np.empty_like(mid)
-    _hermite_quantile(mid, x, slope, P_LO, (P_HI - P_LO) / N_NODES, got)
+    _hermite_quantile(mid, x, slope, P_LO, H_NODE, got)
     exact = special.gammaincinv(shape, mid)
     if not np.all(np.abs(got - exact) <= TABLE_RTOL * exact):
         return None
@@ -138,7 +139,7 @@ def heights_from_uniform(params: InterfaceParams, p):
     if table is None:
         return special.gammaincinv(shape, p) * params.beta
     x = np.empty_like(p)
-    _hermite_quantile(p, table[0], table[1], P_LO, (P_HI - P_LO) / N_NODES, x)
+    _hermite_quantile(p, table[0], table[1], P_LO, H_NODE, x)
     tail = np.isnan(x)
     x[tail] = special.gammaincinv(shape, p[tail])
     return x * params.beta

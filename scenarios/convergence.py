@@ -318,55 +318,57 @@ def fmt_e(v):
     return "—" if not math.isfinite(v) else f"{v:.1e}"
 
 
+def fmt_ratio(v):
+    return " — |" if not math.isfinite(v) else f" {v:.2g}x |" if v < 10 else f" {v:.0f}x |"
+
+
 def fmt_t(v):
     return "—" if not math.isfinite(v) else (f"{v:.2f} s" if v < 10 else f"{v:.0f} s")
 
 
 def summary_table(res, sc_names, methods):
+    others = [m for m in methods if m != "grid"]
+
+    def curve(m, sc):
+        """(mean wall time, RMS curve error) over n of method m on scene sc."""
+        return (res["mean_wall_time"].sel({"method": m, "scene": sc}).values,
+                res["rms_error"].sel({"method": m, "quantity": f"{sc}/curve"}).values)
+
     lines = ["| scene | method | error at 1 s | error at 10 s | time to 1 % | time to 0.1 % |",
              "|---|---|---|---|---|---|"]
     for sc in sc_names:
         for m in methods:
-            t = res["mean_wall_time"].sel({"method": m, "scene": sc}).values
-            e = res["rms_error"].sel({"method": m, "quantity": f"{sc}/curve"}).values
+            t, e = curve(m, sc)
             lines.append(f"| {sc} | {m} | {fmt_e(error_at(t, e, 1.0))} | {fmt_e(error_at(t, e, 10.0))} | "
                          f"{fmt_t(time_to(t, e, 1e-2))} | {fmt_t(time_to(t, e, 1e-3))} |")
     speed = ["", "Speed-up against the paper's grid method at equal error (time of the grid / time of the "
              "method, both interpolated on the error-time frontier of the curve error; — where a method "
              "does not reach the error):", "",
-             "| scene | error | grid time | " + " | ".join(m for m in methods if m != "grid") + " |",
-             "|---|---|---|" + "---|" * sum(m != "grid" for m in methods)]
+             "| scene | error | grid time | " + " | ".join(others) + " |",
+             "|---|---|---|" + "---|" * len(others)]
     for sc in sc_names:
-        tg, eg = res["mean_wall_time"].sel({"method": "grid", "scene": sc}).values, \
-            res["rms_error"].sel({"method": "grid", "quantity": f"{sc}/curve"}).values
+        tg, eg = curve("grid", sc)
         for e_star in (1e-2, 1e-3, 1e-4):
             t_grid = time_to(tg, eg, e_star)
             row = [f"| {sc} | {e_star:.0e} | {fmt_t(t_grid)} |"]
-            for m in methods:
-                if m == "grid":
-                    continue
-                tm = time_to(res["mean_wall_time"].sel({"method": m, "scene": sc}).values,
-                             res["rms_error"].sel({"method": m, "quantity": f"{sc}/curve"}).values, e_star)
+            for m in others:
+                tm = time_to(*curve(m, sc), e_star)
                 ratio = t_grid / tm if math.isfinite(t_grid) and math.isfinite(tm) else math.nan
-                row.append(" — |" if not math.isfinite(ratio) else f" {ratio:.2g}x |" if ratio < 10 else f" {ratio:.0f}x |")
+                row.append(fmt_ratio(ratio))
             speed.append("".join(row))
     own = ["", "Speed-up at the error of each grid run (its resolution s relative to the paper's, s = 1 "
            "published; time of that grid run / time the method needs for the same curve error):", "",
-           "| scene | grid s | grid error | grid time | " + " | ".join(m for m in methods if m != "grid") + " |",
-           "|---|---|---|---|" + "---|" * sum(m != "grid" for m in methods)]
+           "| scene | grid s | grid error | grid time | " + " | ".join(others) + " |",
+           "|---|---|---|---|" + "---|" * len(others)]
     for sc in sc_names:
-        tg = res["mean_wall_time"].sel({"method": "grid", "scene": sc}).values
-        eg = res["rms_error"].sel({"method": "grid", "quantity": f"{sc}/curve"}).values
+        tg, eg = curve("grid", sc)
         sg = res["grid_scale"].sel({"scene": sc}).values
         for i in np.flatnonzero(np.isfinite(tg) & np.isfinite(eg)):
             row = [f"| {sc} | {sg[i]:g} | {eg[i]:.1e} | {fmt_t(tg[i])} |"]
-            for m in methods:
-                if m == "grid":
-                    continue
-                tm = time_to(res["mean_wall_time"].sel({"method": m, "scene": sc}).values,
-                             res["rms_error"].sel({"method": m, "quantity": f"{sc}/curve"}).values, eg[i])
+            for m in others:
+                tm = time_to(*curve(m, sc), eg[i])
                 ratio = tg[i] / tm if math.isfinite(tm) else math.nan
-                row.append(" — |" if not math.isfinite(ratio) else f" {ratio:.2g}x |" if ratio < 10 else f" {ratio:.0f}x |")
+                row.append(fmt_ratio(ratio))
             own.append("".join(row))
     return "\n".join(lines + speed + own)
 
