@@ -8,11 +8,16 @@ array, so the result does not depend on the number of threads.
 
 Speed (``paper`` law, issue 5): an asperity above the closure is dropped before any
 trigonometry when it cannot touch at the largest angle in use (:func:`cannot_touch`) or,
-under policy follow, at its own largest angle (:func:`cannot_touch_follow`, from
-cos theta_m = 1 - k_e c / R alone); d theta / d Delta_1 is computed for contacts only;
-chunks go to the threads in a strided order (:func:`chunk_stride`) so that both threads get
-low (costly, in contact) and high (cheap) heights; small workloads run on the calling
-thread (:func:`assemble_paper_serial`).  None of this changes a result.
+under policy follow, at its own largest angle (:func:`may_touch_follow`, from
+cos theta_m = 1 - k_e c / R alone).  Under policy follow the rest go through a branch-free
+loop that LLVM vectorises (:func:`paper_chunk_follow`, :func:`follow_values`: series
+trigonometry, selects instead of branches), about 3x faster per contact than the scalar libm
+loop kept for policy birth (:func:`paper_chunk_birth`); the two agree to round-off.  Without
+fastmath, vector and scalar code give the same bits, and the per-asperity values are summed in
+a fixed order after the vector loop, so a result is bit-identical in every process whether
+its kernels were compiled or loaded from the numba cache.  Chunks go to the threads in a
+strided order (:func:`chunk_stride`) so that both threads get low (costly, in contact) and
+high (cheap) heights; small workloads run on the calling thread (:func:`assemble_paper_serial`).
 
 Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
 Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
@@ -31,7 +36,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import local_displacement, theta_m_and_slope
+from .geometry import acos_unit, fsqrt, local_displacement, sin_cos_quarter, theta_m_and_slope
 from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
 from .population import Population
@@ -151,27 +156,6 @@ def cannot_touch(x, shear_ph, tan_max):
 
 
 @numba.njit(cache=True, inline="always")
-def cannot_touch_follow(x, shear_ph, y, scale):
-    """True when asperity j cannot touch under policy follow, tested without trigonometry.
-
-    ``y`` = cos(theta_m(c, R_j)) = 1 - k_e c / R_j (Eq. 9, before clipping) and ``scale`` =
-    2 u_j / pi, so theta = scale theta_m.  tan is convex on [0, pi/2) with tan 0 = 0, hence
-    tan(theta) <= scale tan(theta_m); above the closure (x <= 0, shear_ph > 0) contact needs
-    tan(theta) > -x / shear_ph, impossible when scale² (1 - y²) shear_ph² < x² y² (y > 0).
-    The relative margin 1e-9 keeps the test on the safe side of round-off.
-    """
-    if x > 0.0:
-        return False
-    if shear_ph <= 0.0:
-        return True
-    if y <= 0.0:
-        return False  # theta_m = pi/2: no bound
-    if y >= 1.0:
-        return True  # theta_m = 0: delta_n = x <= 0
-    return scale * scale * (1.0 - y * y) * shear_ph * shear_ph * (1.0 + 1e-9) < x * x * y * y
-
-
-@numba.njit(cache=True, inline="always")
 def chunk_stride(n_chunks):
     """A stride g coprime with n_chunks, near n_chunks / golden ratio.
 
@@ -192,9 +176,9 @@ def chunk_stride(n_chunks):
 
 
 @numba.njit(cache=True, inline="always")
-def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                theta_birth, has_birth, tan_max, partial):
-    """Row ic of ``partial``: the sums of :func:`accumulate` over asperities ic*CHUNK .. of chunk ic."""
+def paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                      theta_birth, tan_max, partial):
+    """Row ic of ``partial`` under policy birth: the sums of :func:`accumulate` over chunk ic."""
     acc = np.zeros(N_ACC)
     J = np.zeros((3, 3))
     for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
@@ -202,30 +186,11 @@ def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
         x = d1 - r[j]
         if cannot_touch(x, cp * d2 + sp * d3, tan_max):
             continue
-        inv_R = 1.0 / R[j]
-        y = 1.0  # cos(theta_m) under policy follow; unused under birth
-        if has_birth:
-            th, th1 = contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
-        else:
-            # asperity_theta without the slope (needed for contacts only, below)
-            y = 1.0 - k_e * closure * inv_R
-            if cannot_touch_follow(x, cp * d2 + sp * d3, y, u[j] / (0.5 * math.pi)):
-                continue
-            if y >= 1.0:
-                th_m = 0.0
-            elif y <= 0.0:
-                th_m = 0.5 * math.pi
-            else:
-                th_m = math.acos(y)
-            th = u[j] / (0.5 * math.pi) * th_m
-            th1 = 0.0
+        th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, True)
         ct, st = math.cos(th), math.sin(th)
         dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
         if dn <= 0.0:
             continue
-        if not has_birth and 0.0 < y < 1.0:
-            # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
-            th1 = u[j] / (0.5 * math.pi) * (k_e * inv_R / math.sqrt((1.0 - y) * (1.0 + y))) * dc
         f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
             dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
         dst = math.sqrt(ds * ds + dt * dt)
@@ -244,6 +209,186 @@ def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
     partial[ic, :] = acc
 
 
+# per-asperity values of the follow kernel, one row of BLOCK each: global force (3), tangent (9,
+# row-major), contact, full slip, partial slip (0 or 1) and theta of a contact
+V_G, V_T, V_NC, V_NS, V_NP, V_TH = 0, 3, 12, 13, 14, 15
+N_VAL = 16
+BLOCK = 256  # asperities per block (16 x 256 doubles of values = 32 KiB)
+# inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
+X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
+N_IN = 5
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hertz, lam, mu):
+    """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
+
+    ``x`` = Delta_1 - r.  The same physics as :func:`paper_local` and :func:`accumulate` (with
+    J[0, 1] = J[0, 2] = 0: Hertz does not depend on the slip), written with selects instead of
+    branches, :func:`fsqrt` and the series :func:`acos_unit` and :func:`sin_cos_quarter` instead
+    of libm, so that LLVM vectorises the loop that calls it.  Both the stick and the slip form
+    are computed with safe arguments; an asperity out of contact gets zeros.
+    """
+    shear_ph = cp * d2 + sp * d3
+    dt = -sp * d2 + cp * d3
+    inv_R = 1.0 / R_j
+    y = 1.0 - k_e * closure * inv_R
+    yc = 0.0 if y < 0.0 else (1.0 if y > 1.0 else y)  # min/max would not vectorise
+    scale = u_j * (2.0 / math.pi)
+    th = scale * acos_unit(yc)
+    st, ct = sin_cos_quarter(th)
+    dn = ct * x + st * shear_ph
+    ds = -st * x + ct * shear_ph
+    touch = dn > 0.0
+    # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
+    inner = touch & (y > 0.0) & (y < 1.0)
+    th1 = scale * k_e * inv_R / fsqrt((1.0 - yc) * (1.0 + yc)) * dc if inner else 0.0
+    dn_safe = dn if touch else 1.0
+    C = c_hertz * fsqrt(R_j)
+    sq = fsqrt(dn_safe)
+    f_n = C * dn_safe * sq
+    k_n = 1.5 * C * sq
+    dst = fsqrt(ds * ds + dt * dt)
+    xs = dst / (lam * mu * dn_safe)
+    stick = xs < 1.0
+    om = fsqrt(1.0 - xs if stick else 0.0)
+    q = (1.0 + om + om * om) / (1.0 + om)
+    inv_dst = 1.0 / dst if dst > 0.0 else 0.0
+    k_sec = C * sq * q / lam if stick else mu * f_n * inv_dst
+    dF_dst = k_n * om / lam if stick else 0.0
+    dF_dn = mu * k_n * xs * (q - om) if stick else mu * k_n
+    es, et = ds * inv_dst, dt * inv_dst
+    f_n = f_n if touch else 0.0
+    k_n = k_n if touch else 0.0
+    k_sec = k_sec if touch else 0.0
+    extra = dF_dst - k_sec if touch else 0.0
+    dF_dn = dF_dn if touch else 0.0
+    f_s, f_t = k_sec * ds, k_sec * dt
+    J10, J20 = dF_dn * es, dF_dn * et
+    J11, J12, J22 = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
+    n0, n1, n2 = ct, st * cp, st * sp
+    s0, s1, s2 = -st, ct * cp, ct * sp
+    t1, t2 = -sp, cp
+    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
+    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1 + f_t * t1
+    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2 + f_t * t2
+    k00, k10 = n0 + ds * th1, s0 - dn * th1
+    A00, A01, A02 = k_n * k00, k_n * n1, k_n * n2
+    A10 = J10 * k00 + J11 * k10
+    A11 = J10 * n1 + J11 * s1 + J12 * t1
+    A12 = J10 * n2 + J11 * s2 + J12 * t2
+    A20 = J20 * k00 + J12 * k10
+    A21 = J20 * n1 + J12 * s1 + J22 * t1
+    A22 = J20 * n2 + J12 * s2 + J22 * t2
+    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
+    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
+    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
+    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1
+    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * A21
+    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * A22
+    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
+    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * A21
+    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * A22
+    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
+    vals[V_NS * BLOCK + i] = 1.0 if touch & (xs >= 1.0) else 0.0
+    vals[V_NP * BLOCK + i] = 1.0 if touch & stick & (dst > 0.0) else 0.0
+    vals[V_TH * BLOCK + i] = th if touch else 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def may_touch_follow(x, shear_ph, y, scale, tan_max):
+    """False when the asperity cannot touch under policy follow, tested without trigonometry or branches.
+
+    ``x`` = Delta_1 - r, ``shear_ph`` = cos(phi) Delta_2 + sin(phi) Delta_3, ``y`` =
+    cos(theta_m(c, R_j)) = 1 - k_e c / R_j (Eq. 9, before clipping), ``scale`` = 2 u_j / pi, so
+    theta = scale theta_m, and ``tan_max`` bounds tan theta of every asperity (:func:`cannot_touch`).
+    Above the closure (x <= 0) contact needs shear_ph > 0 and tan(theta) > -x / shear_ph.  tan
+    is convex on [0, pi/2) with tan 0 = 0, hence tan(theta) <= scale tan(theta_m): contact is
+    impossible when scale² (1 - y²) shear_ph² < x² y² (0 < y < 1; y >= 1 means theta_m = 0 and
+    y <= 0 gives no bound).  The relative margin 1e-9 keeps both tests on the safe side of round-off.
+    """
+    sh2 = shear_ph * shear_ph
+    by_angle = ~(-x > shear_ph * tan_max * (1.0 + 1e-9))
+    by_own = (y <= 0.0) | ((y < 1.0) & ~(scale * scale * (1.0 - y * y) * sh2 * (1.0 + 1e-9) < x * x * y * y))
+    return (x > 0.0) | ((shear_ph > 0.0) & by_angle & by_own)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                       tan_max, partial):
+    """Row ic of ``partial`` under policy follow: :func:`paper_local` + :func:`accumulate`, vectorised.
+
+    Per block of BLOCK asperities: the inputs of those :func:`may_touch_follow` keeps are
+    copied, contiguous, into ``inp`` (no trigonometry, no branch); :func:`follow_values` fills
+    ``vals`` in a loop that LLVM vectorises; the columns are summed in order.  No fastmath
+    anywhere, so vector and scalar code give the same bits and the sums do not depend on how
+    LLVM vectorised: the result is the same in every process, compiled or loaded from the cache.
+    """
+    lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
+    vals = np.empty(N_VAL * BLOCK)
+    inp = np.empty(N_IN * BLOCK)
+    c_hertz = (4.0 / 3.0) * E_star
+    F0 = F1 = F2 = P00 = P11 = P22 = P01 = P02 = P12 = 0.0
+    T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
+    n_c = n_s = n_p = th_sum = 0.0
+    for b0 in range(lo, hi, BLOCK):
+        m = 0
+        for j in range(b0, min(hi, b0 + BLOCK)):
+            x, cp, sp, R_j, u_j = d1 - r[j], cos_phi[j], sin_phi[j], R[j], u[j]
+            inp[X_X * BLOCK + m] = x
+            inp[X_CP * BLOCK + m] = cp
+            inp[X_SP * BLOCK + m] = sp
+            inp[X_R * BLOCK + m] = R_j
+            inp[X_U * BLOCK + m] = u_j
+            keep = may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure / R_j, u_j * (2.0 / math.pi), tan_max)
+            m += 1 if keep else 0
+        for i in range(m):
+            follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                          inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
+        for i in range(m):
+            g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
+            F0 += g0
+            F1 += g1
+            F2 += g2
+            P00 += g0 * g0
+            P11 += g1 * g1
+            P22 += g2 * g2
+            P01 += g0 * g1
+            P02 += g0 * g2
+            P12 += g1 * g2
+            T0 += vals[V_T * BLOCK + i]
+            T1 += vals[(V_T + 1) * BLOCK + i]
+            T2 += vals[(V_T + 2) * BLOCK + i]
+            T3 += vals[(V_T + 3) * BLOCK + i]
+            T4 += vals[(V_T + 4) * BLOCK + i]
+            T5 += vals[(V_T + 5) * BLOCK + i]
+            T6 += vals[(V_T + 6) * BLOCK + i]
+            T7 += vals[(V_T + 7) * BLOCK + i]
+            T8 += vals[(V_T + 8) * BLOCK + i]
+            n_c += vals[V_NC * BLOCK + i]
+            n_s += vals[V_NS * BLOCK + i]
+            n_p += vals[V_NP * BLOCK + i]
+            th_sum += vals[V_TH * BLOCK + i]
+    row = partial[ic]
+    row[I_F], row[I_F + 1], row[I_F + 2] = F0, F1, F2
+    row[I_FF], row[I_FF + 1], row[I_FF + 2], row[I_FF + 3], row[I_FF + 4], row[I_FF + 5] = P00, P11, P22, P01, P02, P12
+    row[I_T], row[I_T + 1], row[I_T + 2], row[I_T + 3], row[I_T + 4] = T0, T1, T2, T3, T4
+    row[I_T + 5], row[I_T + 6], row[I_T + 7], row[I_T + 8] = T5, T6, T7, T8
+    row[I_NC], row[I_NS], row[I_NP], row[I_TH] = n_c, n_s, n_p, th_sum
+
+
+@numba.njit(cache=True, inline="always")
+def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                theta_birth, has_birth, tan_max, partial):
+    """Row ic of ``partial`` for the ``paper`` law, by policy."""
+    if has_birth:
+        paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                          theta_birth, tan_max, partial)
+    else:
+        paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                           tan_max, partial)
+
+
 @numba.njit(cache=True, parallel=True)
 def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, tan_max,
                    partial):
@@ -253,8 +398,7 @@ def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star,
     committed contact and NaN elsewhere (policy birth).  ``tan_max`` is tan of an upper
     bound of every angle in use (:func:`angle_bound`): an asperity above the closure that
     cannot touch at that angle is skipped before any trigonometry (:func:`cannot_touch`;
-    under policy follow also :func:`cannot_touch_follow`, per asperity).  Under policy
-    follow the slope d theta / d Delta_1 is computed for contacts only.  ``partial`` has
+    under policy follow also by :func:`may_touch_follow`, per asperity).  ``partial`` has
     shape (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
     Chunks are handed to the threads in the order of :func:`chunk_stride`.
     """

@@ -191,3 +191,54 @@ def test_evaluate_rejects_wrong_population_and_workspace():
     with pytest.raises(ValueError, match="Workspace"):
         evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(10))
     assert evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(pop.n)).n_active >= 0
+
+
+@pytest.mark.parametrize("params", [R1, S1], ids=["R1", "S1"])
+@pytest.mark.parametrize("delta_um", [(18.0, 0.0, 0.0), (15.0, 3.0, 1.0), (13.0, 50.0, 0.0), (15.0, 15.0, 15.0),
+                                      (5.0, -2.0, 7.0), (3.0, 0.0, 40.0), (4.0, 30.0, -20.0)])
+def test_vectorised_follow_kernel_matches_scalar_libm_kernel(params, delta_um):
+    """Policy follow runs the branch-free, series-trigonometry kernel; policy birth with no frozen
+    angle is the same physics through the scalar libm kernel.  They must agree to round-off."""
+    pop = Population.sample(params, 20000, seed=7)
+    delta = np.array(delta_um) * um
+    ev_f = evaluate(pop, delta, policy="follow")
+    ev_b = evaluate(pop, delta, policy="birth", theta_birth=np.full(pop.n, np.nan))
+    assert ev_f.n_contact == ev_b.n_contact > 0
+    assert (ev_f.n_slip, ev_f.n_partial) == (ev_b.n_slip, ev_b.n_partial)
+    scale = np.abs(ev_b.stress).max()
+    np.testing.assert_allclose(ev_f.stress, ev_b.stress, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(ev_f.covariance, ev_b.covariance, rtol=0, atol=1e-11 * np.abs(ev_b.covariance).max())
+    np.testing.assert_allclose(ev_f.tangent, ev_b.tangent, rtol=0, atol=1e-12 * np.abs(ev_b.tangent).max())
+    assert ev_f.mean_theta == pytest.approx(ev_b.mean_theta, rel=1e-13)
+
+
+BITS = """
+import numba, numpy as np
+from asperity_sim import Population, presets
+from asperity_sim.assemble import evaluate
+pop = Population.sample(presets.R1, 100000, seed=5)
+out = []
+for th in (1, 2):
+    numba.set_num_threads(th)
+    for d in ((18.0, 0.0, 0.0), (15.0, 3.0, 1.0), (13.0, 50.0, 0.0)):
+        ev = evaluate(pop, np.array(d) * 1e-6)
+        out += [v.hex() for v in np.concatenate([ev.stress, ev.covariance.ravel(), ev.tangent.ravel()])]
+print(" ".join(out))
+"""
+
+
+@pytest.mark.slow
+def test_kernel_bits_equal_compiled_and_from_cache(tmp_path):
+    """The same bits in a process that compiles the kernels and in one that loads them from the
+    numba cache, on 1 and 2 threads (a kernel whose sums LLVM may reassociate fails this)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    runs = [subprocess.run([sys.executable, "-c", BITS], env=env, capture_output=True, text=True, check=True).stdout
+            for _ in range(2)]
+    assert any((tmp_path / "cache").rglob("*.nbi"))  # the second process did load a cache
+    first = runs[0].split()
+    assert runs[0] == runs[1]
+    assert first[:len(first) // 2] == first[len(first) // 2:]  # 1 and 2 threads

@@ -119,7 +119,7 @@ def test_hard_time_limit_kills_a_run_and_the_matrix_goes_on():
     huge = stability.Case("huge", n=50_000_000, paths=("three_step",), laws=("paper",))
     small = stability.Case("small", paths=("three_step",), laws=("paper",))
     records = stability.run_matrix([(huge, "three_step", "paper"), (small, "three_step", "paper")], n=200, seed=1,
-                                   inc=1, soft_limit=60.0, hard_limit=1.0, log=lambda *a: None)
+                                   inc=1, soft_limit=60.0, hard_limit=4.0, log=lambda *a: None)
     assert records[0]["outcome"] == "HardTimeLimit" and "killed" in records[0]["message"]
     assert records[1]["outcome"] == "complete"
 
