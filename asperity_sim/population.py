@@ -393,7 +393,7 @@ class Population:
         else:
             r_max = delta[0] + shear * math.tan(theta)
         r_max += 1e-12 * max(abs(r_max), self.params.beta)  # round-off margin at the contact edge
-        return int(np.searchsorted(self.r, r_max, side="right"))
+        return int(self.r.searchsorted(r_max, side="right"))
 
     def evaluate(self, delta, law: str = "paper", policy: str = "follow", theta_birth=None):
         """Interface stress, standard error, tangent and contact counts at delta (SPEC §6).

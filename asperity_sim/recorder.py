@@ -41,9 +41,8 @@ class Recorder:
                 grown = np.zeros((self._capacity,) + a.shape[1:], dtype=a.dtype)
                 grown[: self.size] = a[: self.size]
                 self._buf[name] = grown
-        missing = set(self._buf) - set(values)
-        if missing:
-            raise KeyError(f"record is missing {sorted(missing)}")
+        if not values.keys() >= self._buf.keys():
+            raise KeyError(f"record is missing {sorted(self._buf.keys() - values.keys())}")
         for name, v in values.items():
             self._buf[name][self.size] = v
         self.size += 1

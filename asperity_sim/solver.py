@@ -81,11 +81,20 @@ RESOLUTION_ULPS = 64.0  # a Newton step this many ulps of Delta or less is below
 
 
 def _below_resolution(x, step):
-    """True when every component of ``step`` [m] is within RESOLUTION_ULPS ulps of ``x`` [m]."""
-    x = np.atleast_1d(np.asarray(x, dtype=float))
-    step = np.atleast_1d(np.asarray(step, dtype=float))
-    ulp = np.spacing(np.maximum(np.abs(x), np.abs(x + step)))
-    return bool(np.all(np.isfinite(step)) and np.all(np.abs(step) <= RESOLUTION_ULPS * ulp))
+    """True when every component of ``step`` [m] is within RESOLUTION_ULPS ulps of ``x`` [m] (lists of floats)."""
+    if not all(map(math.isfinite, step)):
+        return False
+    return all(abs(s) <= RESOLUTION_ULPS * np.spacing(max(abs(xi), abs(xi + s))) for xi, s in zip(x, step))
+
+
+def _max_abs(values):
+    """max |v| over a few floats, 0 for none and NaN if any is NaN (as np.max, without its call overhead)."""
+    m = 0.0
+    for v in values:
+        a = abs(v)
+        if a > m or a != a:
+            m = a
+    return m
 
 
 @dataclass
@@ -101,9 +110,14 @@ class SolveResult:
     unreachable: bool = False
 
 
+def _stress_scale(ev, free, target, settings):
+    """Scale [Pa] of the residuals: the largest |target_f|, |sigma_i| and sigma_floor."""
+    return max(_max_abs(target[free].tolist()), _max_abs(ev.stress.tolist()), settings.sigma_floor)
+
+
 def _scaled_residual(ev, free, target, settings, scale=None):
     if scale is None:
-        scale = max(np.max(np.abs(target[free]), initial=0.0), np.max(np.abs(ev.stress)), settings.sigma_floor)
+        scale = _stress_scale(ev, free, target, settings)
     r = (ev.stress[free] - target[free]) / scale
     return r, scale
 
@@ -124,12 +138,13 @@ def solve_increment(evaluate, delta_guess, free, target, length_scale, settings=
 
 def _solve(evaluate, delta_guess, free, target, length_scale, settings):
     free = np.asarray(free, dtype=bool)
+    mask = free.tolist()
     x = np.array(delta_guess, dtype=float)
     ev = evaluate(x)
-    if not free.any():
+    if not any(mask):
         return SolveResult(True, 0, 0.0, 0.0, "displacement controlled", ev)
-    if free.sum() == 1:
-        return _solve_scalar(evaluate, x, ev, int(np.flatnonzero(free)[0]), free, target, length_scale, settings)
+    if sum(mask) == 1:
+        return _solve_scalar(evaluate, x, ev, mask.index(True), free, target, length_scale, settings)
     result = _solve_newton(evaluate, x, ev, free, target, length_scale, settings)
     if result.converged or not free[0]:
         return result
@@ -152,7 +167,8 @@ def _checked(result):
     a named error, and nothing non-finite is ever recorded.
     """
     ev = result.evaluation
-    if result.converged and not all(np.all(np.isfinite(a)) for a in (ev.stress, ev.covariance, ev.tangent)):
+    if result.converged and not all(all(map(math.isfinite, a.ravel().tolist()))
+                                    for a in (ev.stress, ev.covariance, ev.tangent)):
         result.converged = False
         result.message = (f"the stress, its covariance or its tangent at Delta = {ev.delta} m is not finite: the "
                           "parameters put the interface response beyond the floating-point range")
@@ -172,8 +188,8 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
     stalled = 0
     rate = 0.0
     for it in range(1, settings.max_iter + settings.max_expansions + 1):
-        r, scale = _scaled_residual(ev, free, target, settings)
-        r = float(r[0])
+        scale = _stress_scale(ev, free, target, settings)
+        r = float((ev.stress[k] - target[k]) / scale)  # the one component of _scaled_residual
         if not math.isfinite(r):
             return SolveResult(False, it - 1, r, rate, _NONFINITE.format(x), ev)
         if abs(r) <= settings.rtol:
@@ -189,7 +205,7 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
             hi = x[k]
         T = ev.tangent[k, k] / scale
         x_new = x[k] - r / T if T > 0.0 and math.isfinite(T) else math.nan
-        if abs(r) <= res_tol and math.isfinite(x_new) and _below_resolution(x[k], x_new - x[k]):
+        if abs(r) <= res_tol and math.isfinite(x_new) and _below_resolution([x[k]], [x_new - x[k]]):
             return SolveResult(True, it - 1, abs(r), rate, f"converged to the floating-point resolution of "
                                f"Delta_{k + 1} (residual {abs(r):.3g})", ev)
         if lo is not None and hi is not None:
@@ -251,7 +267,7 @@ def _solve_newton(evaluate, x, ev, free, target, L, settings):
         # scaled Jacobian: d r / d (x / L)
         J = ev.tangent[np.ix_(idx, idx)] * (L / scale)
         step, *_ = np.linalg.lstsq(J, -r, rcond=1e-12)
-        if norm <= res_tol and _below_resolution(x[idx], step * L):
+        if norm <= res_tol and _below_resolution(x[idx].tolist(), (step * L).tolist()):
             return SolveResult(True, it - 1, norm, rate,
                                f"converged to the floating-point resolution of Delta (residual {norm:.3g})", ev)
         # components the tangent cannot move (no contact yet): search outwards, doubling
