@@ -29,7 +29,6 @@ using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
 
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass
 
@@ -47,7 +46,7 @@ SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) t
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
 I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
 N_ACC = 22
-_FF_SYM = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])  # (i, j) -> position of f_i f_j among the products
+_FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (i, j) of the products f_i f_j, in their order
 POLICIES = ("follow", "birth")
 LAWS = ("paper", "mdr")
 
@@ -558,7 +557,7 @@ def check_delta(delta) -> np.ndarray:
     d = np.asarray(delta, dtype=float)
     if d.shape != (3,):
         raise ValueError(f"delta = {delta!r} must have shape (3,) [m], got shape {d.shape}")
-    if not np.all(np.isfinite(d)):
+    if not all(map(math.isfinite, d.tolist())):
         raise ValueError(f"delta = {d!r} [m] is not finite (valid range: finite reals)")
     return d
 
@@ -592,17 +591,26 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
     d = check_delta(delta)
     check_choice("law", law, LAWS)
     check_choice("policy", policy, POLICIES)
-    p = pop.params
     if workspace is not None and (not isinstance(workspace, Workspace)
                                   or workspace.partial.shape[0] * CHUNK < pop.n):
         raise ValueError(f"workspace = {workspace!r} is not a Workspace for {pop.n} asperities (use Workspace(pop.n))")
+    tb = None
     if policy == "birth" and theta_birth is not None:
         tb = np.asarray(theta_birth, dtype=float)
         if tb.shape != (pop.n,):
             raise ValueError(f"theta_birth has shape {tb.shape}, expected ({pop.n},)")
-    else:
-        tb = _EMPTY
     ws = workspace if workspace is not None else Workspace(pop.n)
+    return evaluate_unchecked(pop, d, law, tb, ws, history)
+
+
+def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluation:
+    """:func:`evaluate` on arguments already checked (for a solver that calls it many times).
+
+    ``d`` a finite float array (3,), ``law`` valid, ``theta_birth`` None (every contact born
+    now) or a float array (n,), ``workspace`` a :class:`Workspace` for ``pop``.
+    """
+    p = pop.params
+    tb = _EMPTY if theta_birth is None else theta_birth
     theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
     n_active = pop.n_reachable(d, theta_max)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
@@ -610,7 +618,7 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
         tan_max = tan_bound(angle_bound(pop, d, theta_max))
         kernel = assemble_paper if n_chunks > SERIAL_CHUNKS else assemble_paper_serial
         kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
-               p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, tan_max, ws.partial)
+               p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, tan_max, workspace.partial)
     else:
         if history is None:
             from .state import MDRHistory
@@ -618,38 +626,50 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
             history = MDRHistory.virgin(pop, dn_cap=max(d[0], p.beta))
         hs = history
         assemble_mdr(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, hs.delta_c,
-                     p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap, ws.partial)
-    s = ws.partial[:n_chunks].sum(axis=0)
+                     p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap,
+                     workspace.partial)
+    s = workspace.partial[:n_chunks].sum(axis=0)
     return _finish(pop, d, s, n_active)
 
 
 def _finish(pop, d, s, n_active) -> Evaluation:
+    # on these few numbers Python floats are much faster than numpy calls, with the same
+    # IEEE operations in the same order (and a huge N w gives inf, never an exception)
     n = pop.n
     scale = pop.params.N * pop.weight
-    sum_f = s[I_F:I_F + 3]
-    cov = np.zeros((3, 3))
-    if n > 1:
-        # covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n = (N w)² n C_f
-        # (numpy floats, in this order: a huge N w gives inf, never an OverflowError, and 0 stays 0)
-        scale64 = np.float64(scale)
-        sum_ff = s[I_FF:I_FF + 6][_FF_SYM]
-        # np.errstate costs microseconds per Newton iteration; only a huge scale can overflow
-        with np.errstate(over="ignore") if scale64 >= 1e100 else contextlib.nullcontext():
-            cov = (sum_ff - np.outer(sum_f, sum_f) / n) / (n - 1) * scale64 * scale64 * n
-    stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    n_contact = int(round(s[I_NC]))
+    v = s.tolist()
+    f = v[I_F:I_F + 3]
+    cov = _covariance(f, v[I_FF:I_FF + 6], n, scale) if n > 1 else [[0.0] * 3 for _ in range(3)]
+    n_contact = int(round(v[I_NC]))
+    scaled = scale * s
     return Evaluation(
         delta=d,
-        stress=scale * sum_f,
-        stderr=stderr,
-        covariance=cov,
-        tangent=scale * s[I_T:I_T + 9].reshape(3, 3),
+        stress=scaled[I_F:I_F + 3],
+        stderr=np.array([sqrt_nonneg(cov[i][i]) for i in range(3)]),
+        covariance=np.array(cov),
+        tangent=scaled[I_T:I_T + 9].reshape(3, 3),
         n_contact=n_contact,
-        n_slip=int(round(s[I_NS])),
-        n_partial=int(round(s[I_NP])),
-        mean_theta=float(s[I_TH] / n_contact) if n_contact else 0.0,
+        n_slip=int(round(v[I_NS])),
+        n_partial=int(round(v[I_NP])),
+        mean_theta=v[I_TH] / n_contact if n_contact else 0.0,
         n_active=n_active,
     )
+
+
+def _covariance(f, ff, n, scale):
+    """Covariance [Pa²] (nested lists) of the stress estimate from the sums of f_i and f_i f_j.
+
+    Covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n = (N w)² n C_f,
+    multiplied in this order so that 0 stays 0 when (N w)² overflows.
+    """
+    c11, c22, c33, c12, c13, c23 = [(ff[m] - f[i] * f[j] / n) / (n - 1) * scale * scale * n
+                                    for m, (i, j) in enumerate(_FF_PAIRS)]
+    return [[c11, c12, c13], [c12, c22, c23], [c13, c23, c33]]
+
+
+def sqrt_nonneg(x: float) -> float:
+    """sqrt(max(x, 0)) as numpy computes it: NaN stays NaN, -0.0 gives 0.0."""
+    return math.sqrt(x) if x > 0.0 or x != x else 0.0
 
 
 @numba.njit(cache=True, parallel=True)

@@ -16,6 +16,7 @@ bit-identically (:mod:`asperity_sim.checkpoint`, :func:`resume`).
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 import numbers
 import os
@@ -27,7 +28,8 @@ import numpy as np
 
 from . import __version__
 from . import checkpoint as ckpt
-from .assemble import LAWS, POLICIES, Evaluation, Workspace, birth_angles, check_choice, evaluate, snapshot
+from .assemble import (LAWS, POLICIES, Evaluation, Workspace, birth_angles, check_choice, check_delta, evaluate,
+                       evaluate_unchecked, snapshot, sqrt_nonneg)
 from .params import InterfaceParams, check_real
 from .paths import LoadPath, Stage
 from .population import N_MAX, SAMPLERS, Population
@@ -57,7 +59,9 @@ class WallTimeExceededError(SimulationError):
     """The run took longer than its ``max_wall_time``; ``.dataset`` holds every converged increment."""
 
 
+@functools.lru_cache(maxsize=256)
 def _theta_am(params, closure):
+    """theta_am(c) [rad], cached: paths often hold the closure (shear at a prescribed Delta_1)."""
     from .reference import theta_am
 
     return float(theta_am(params, closure))
@@ -308,8 +312,8 @@ class _Run:
     # -- evaluation, snapshots, checkpoints -----------------------------------------------------
 
     def evaluate_at(self, delta):
-        return evaluate(self.pop, delta, law=self.law, policy=self.policy, theta_birth=self.theta_birth,
-                        workspace=self.ws, history=self.history)
+        # the run's own arguments were checked once; only the solver's delta is new
+        return evaluate_unchecked(self.pop, check_delta(delta), self.law, self.theta_birth, self.ws, self.history)
 
     def take_snapshot(self, step):
         if self.history is None:
@@ -548,19 +552,20 @@ def solution_stderr(ev, free):
     covariance of the estimate).  Returns (stress_stderr [Pa], displacement_stderr [m]).
     """
     free = np.asarray(free, dtype=bool)
-    if not free.any():
+    mask = free.tolist()
+    if not any(mask):
         return ev.stderr, np.zeros(3)
-    if free.sum() == 1:  # the common case, in closed form (same formulas, no pinv)
-        k = int(np.flatnonzero(free)[0])
-        t_kk = ev.tangent[k, k]
+    if sum(mask) == 1:  # the common case, in closed form (same formulas, no pinv), on Python floats
+        k = mask.index(True)
+        T, C = ev.tangent.tolist(), ev.covariance.tolist()
+        t_kk = T[k][k]
         a = 1.0 / t_kk if t_kk != 0.0 and math.isfinite(1.0 / t_kk) else 0.0
-        C = ev.covariance
-        g = ev.tangent[:, k] * a  # dsigma_i = dsigma_i - g_i dsigma_k for the fixed i
-        var_s = np.diag(C) - 2.0 * g * C[:, k] + g * g * C[k, k]
+        g = [T[i][k] * a for i in range(3)]  # dsigma_i = dsigma_i - g_i dsigma_k for the fixed i
+        var_s = [C[i][i] - 2.0 * g[i] * C[i][k] + g[i] * g[i] * C[k][k] for i in range(3)]
         var_s[k] = 0.0
-        var_d = np.zeros(3)
-        var_d[k] = a * a * C[k, k]
-        return np.sqrt(np.maximum(var_s, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
+        var_d = [0.0] * 3
+        var_d[k] = a * a * C[k][k]
+        return np.array([sqrt_nonneg(v) for v in var_s]), np.array([sqrt_nonneg(v) for v in var_d])
     fixed = ~free
     A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
     M_stress = np.zeros((3, 3))
@@ -614,11 +619,12 @@ def _closure_cap(pop, path, ws):
 def _predict(ev, delta, target_delta, target_stress, free):
     """Tangent predictor for the free components from the last converged state."""
     guess = target_delta.copy()
-    if not free.any():
+    mask = free.tolist()
+    if not any(mask):
         return guess
     fixed = ~free
-    if free.sum() == 1:  # the common case without the SVD of cond
-        k = int(np.flatnonzero(free)[0])
+    if sum(mask) == 1:  # the common case without the SVD of cond
+        k = mask.index(True)
         rhs = target_stress[k] - ev.stress[k] - ev.tangent[k, fixed] @ (target_delta - delta)[fixed]
         t_kk = ev.tangent[k, k]
         if t_kk != 0.0 and math.isfinite(t_kk):
@@ -640,9 +646,9 @@ def _predict(ev, delta, target_delta, target_stress, free):
 
 def _ramped(free, start_stress, end):
     """Stress-controlled components whose target changes over the stage (all of them if none does)."""
-    moving = [k for k in np.flatnonzero(free)
-              if abs(end[k] - start_stress[k]) > 1e-6 * max(abs(end[k]), abs(start_stress[k]))]
-    return moving or list(np.flatnonzero(free))
+    idx, s, e = np.flatnonzero(free).tolist(), start_stress.tolist(), end.tolist()
+    moving = [k for k in idx if abs(e[k] - s[k]) > 1e-6 * max(abs(e[k]), abs(s[k]))]
+    return moving or idx
 
 
 def effective_stiffness(ev, free, ramped):
