@@ -317,8 +317,9 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
                        tan_max, partial):
     """Row ic of ``partial`` under policy follow: :func:`paper_local` + :func:`accumulate`, vectorised.
 
-    Per block of BLOCK asperities: the inputs of those :func:`may_touch_follow` keeps are
-    copied, contiguous, into ``inp`` (no trigonometry, no branch); :func:`follow_values` fills
+    Per block of BLOCK asperities: unless the whole block lies below the closure, the inputs of
+    those :func:`may_touch_follow` keeps are copied, contiguous, into ``inp`` (no trigonometry,
+    no branch); :func:`follow_values` fills
     ``vals`` in a loop that LLVM vectorises; the columns are summed in order.  No fastmath
     anywhere, so vector and scalar code give the same bits and the sums do not depend on how
     LLVM vectorised: the result is the same in every process, compiled or loaded from the cache.
@@ -331,19 +332,27 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
     T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
     n_c = n_s = n_p = th_sum = 0.0
     for b0 in range(lo, hi, BLOCK):
-        m = 0
-        for j in range(b0, min(hi, b0 + BLOCK)):
-            x, cp, sp, R_j, u_j = d1 - r[j], cos_phi[j], sin_phi[j], R[j], u[j]
-            inp[X_X * BLOCK + m] = x
-            inp[X_CP * BLOCK + m] = cp
-            inp[X_SP * BLOCK + m] = sp
-            inp[X_R * BLOCK + m] = R_j
-            inp[X_U * BLOCK + m] = u_j
-            keep = may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure / R_j, u_j * (2.0 / math.pi), tan_max)
-            m += 1 if keep else 0
-        for i in range(m):
-            follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                          inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
+        b1 = min(hi, b0 + BLOCK)
+        if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
+            m = b1 - b0
+            for i in range(m):
+                follow_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
+                              d2, d3, closure, dc, k_e, c_hertz, lam, mu)
+        else:
+            m = 0
+            for j in range(b0, b1):
+                x, cp, sp, R_j, u_j = d1 - r[j], cos_phi[j], sin_phi[j], R[j], u[j]
+                inp[X_X * BLOCK + m] = x
+                inp[X_CP * BLOCK + m] = cp
+                inp[X_SP * BLOCK + m] = sp
+                inp[X_R * BLOCK + m] = R_j
+                inp[X_U * BLOCK + m] = u_j
+                keep = may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure / R_j, u_j * (2.0 / math.pi),
+                                        tan_max)
+                m += 1 if keep else 0
+            for i in range(m):
+                follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
         for i in range(m):
             g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
             F0 += g0
