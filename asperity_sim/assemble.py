@@ -319,10 +319,10 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
 
     Per block of BLOCK asperities: unless the whole block lies below the closure, the inputs of
     those :func:`may_touch_follow` keeps are copied, contiguous, into ``inp`` (no trigonometry,
-    no branch); :func:`follow_values` fills
-    ``vals`` in a loop that LLVM vectorises; the columns are summed in order.  No fastmath
-    anywhere, so vector and scalar code give the same bits and the sums do not depend on how
-    LLVM vectorised: the result is the same in every process, compiled or loaded from the cache.
+    no branch); :func:`follow_values` fills ``vals`` in a loop that LLVM vectorises; the
+    columns are summed in order.  No fastmath anywhere, so vector and scalar code give the same
+    bits and the sums do not depend on how LLVM vectorised: the result is the same in every
+    process, compiled or loaded from the cache.
     """
     lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
     vals = np.empty(N_VAL * BLOCK)
