@@ -285,11 +285,11 @@ def _gauss_jacobi01(n, alpha):
     return 0.5 * (x + 1.0), w * 0.5 ** (alpha + 1.0)
 
 
-def radius_rule(params: InterfaceParams, closure: float = 0.0, n: int = 20):
+def radius_rule(params: InterfaceParams, closure: float = 0.0, n: int = 20, slip_cut: bool = True):
     """Nodes R [m] and weights (summing to 1) for E[.] over the truncated Gaussian (SPEC §2).
 
-    Split at R = k_e c, where theta_m(c, R) of Eq. (9) is clipped to pi/2, and where
-    theta_m = arctan(lam mu) (beyond it, at zero shear, whole asperities slip); pieces
+    Split at R = k_e c, where theta_m(c, R) of Eq. (9) is clipped to pi/2, and (``slip_cut``,
+    for forces) where theta_m = arctan(lam mu) (beyond it, at zero shear, whole asperities slip); pieces
     [a, b] with a > 0 and b > 8 a are graded geometrically (theta_m ~ sqrt(2 k_e c / R)).
     A support starting at R = 0 uses the map R = b t² on its first piece (sqrt(R) of the
     Hertz law). Built in the standard variable z = (R - R_m)/R_sigma, so that very narrow
@@ -302,7 +302,7 @@ def radius_rule(params: InterfaceParams, closure: float = 0.0, n: int = 20):
     kc = params.k_e * closure
     cuts = [lo, hi]
     m = params.lam * params.mu
-    for R_cut in (kc, kc / (1.0 - 1.0 / math.sqrt(1.0 + m * m)) if m > 0 else 0.0):
+    for R_cut in (kc, kc / (1.0 - 1.0 / math.sqrt(1.0 + m * m)) if m > 0 and slip_cut else 0.0):
         if lo < R_cut < hi:
             cuts.append(R_cut)
     cuts.sort()
@@ -520,11 +520,19 @@ def tangent(params: InterfaceParams, delta, *, step: float | None = None, **kw) 
     return stress_and_tangent(params, delta, step=step, **kw)[1]
 
 
+@functools.lru_cache(maxsize=64)
+def _theta_rule(params: InterfaceParams, n: int):
+    """:func:`radius_rule` without cuts, for theta_am at closures with k_e c outside the support."""
+    R, w = radius_rule(params, 0.0, n, slip_cut=False)
+    R.flags.writeable = w.flags.writeable = False  # shared by every caller
+    return R, w
+
+
 def theta_am(params: InterfaceParams, closure, n: int = 48):
     """Average orientation extent theta_am(c) [rad], Eq. (29) (SPEC §3).
 
     Integral of theta_m(c, R) p(R) dR over the truncated Gaussian, by Gauss–Legendre split
-    at R = k_e c. ``closure`` [m] is c itself (the caller adds r_o); scalar or array.
+    at R = k_e c (the rule without a split is built once per parameter set). ``closure`` [m] is c itself (the caller adds r_o); scalar or array.
     """
     _check_params(params)
     c_arr = np.asarray(closure, dtype=float)
@@ -532,8 +540,10 @@ def theta_am(params: InterfaceParams, closure, n: int = 48):
         raise ValueError(f"closure = {closure!r} must be finite and >= 0 [m]")
     flat = c_arr.ravel()
     res = np.empty(flat.shape)
+    lo, hi = params.R_bounds
     for i, c in enumerate(flat):
-        R, w = radius_rule(params, c, n)
+        # theta_m(c, R) has its only kink at R = k_e c; elsewhere the rule does not depend on c
+        R, w = radius_rule(params, c, n, slip_cut=False) if lo < params.k_e * c < hi else _theta_rule(params, n)
         y = np.clip(1.0 - params.k_e * c / R, 0.0, 1.0)
         res[i] = np.dot(w, np.arccos(y))
     return res.reshape(c_arr.shape) if c_arr.ndim else float(res[0])
