@@ -38,7 +38,7 @@ import numpy as np
 from .geometry import acos_unit, fsqrt, local_displacement, sin_cos_quarter, theta_m_and_slope
 from .laws.mdr import mdr_springs
 from .laws.paper import paper_local
-from .population import Population
+from .population import Population, reach
 
 CHUNK = 2048
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) the paper kernel runs serially
@@ -404,7 +404,7 @@ def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star,
 
     ``theta_birth`` is empty (policy follow) or holds, per asperity, the frozen angle of a
     committed contact and NaN elsewhere (policy birth).  ``tan_max`` is tan of an upper
-    bound of every angle in use (:func:`angle_bound`): an asperity above the closure that
+    bound of every angle in use (:func:`~asperity_sim.population.reach`): an asperity above the closure that
     cannot touch at that angle is skipped before any trigonometry (:func:`cannot_touch`;
     under policy follow also by :func:`may_touch_follow`, per asperity).  ``partial`` has
     shape (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
@@ -436,20 +436,65 @@ def assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, 
                     theta_birth, has_birth, tan_max, partial)
 
 
-def angle_bound(pop, delta, theta_max=0.0) -> float:
-    """Upper bound [rad] of every contact angle at delta: theta_m(c, R_min) or a frozen angle.
+# layout of the flat result of :func:`finish` (one float array per evaluation)
+O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
+N_OUT = 29
 
-    The same bound as :meth:`Population.n_reachable` (SPEC §3): under policy follow
-    theta = (2/pi) u theta_m(c, R) <= theta_m(c, R_min); ``theta_max`` covers frozen angles.
+
+@numba.njit(cache=True)
+def finish(partial, n_chunks, n, scale, out):
+    """Stress, tangent, covariance, standard error and counts from the partial sums (SPEC §6).
+
+    sigma = N w sum f; the covariance of the mean of n iid draws scaled to stress,
+    (N w n)² C_f / n = (N w)² n C_f, multiplied in this order so that 0 stays 0 when (N w)²
+    overflows; the standard error is its square root on the diagonal (NaN stays NaN).
     """
-    closure = max(0.0, pop.params.r_o + delta[0])
-    y = 1.0 - pop.params.k_e * closure / pop.R_min
-    return max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
+    s = np.zeros(N_ACC)
+    for ic in range(n_chunks):  # row after row, in order, as numpy's sum over axis 0
+        for a in range(N_ACC):
+            s[a] += partial[ic, a]
+    for i in range(3):
+        out[O_STRESS + i] = scale * s[I_F + i]
+    for i in range(9):
+        out[O_TANGENT + i] = scale * s[I_T + i]
+    for m in range(6):
+        i, j = _FF_PAIRS[m]
+        c = (s[I_FF + m] - s[I_F + i] * s[I_F + j] / n) / (n - 1) * scale * scale * n if n > 1 else 0.0
+        out[O_COV + 3 * i + j] = c
+        out[O_COV + 3 * j + i] = c
+    for i in range(3):
+        c = out[O_COV + 4 * i]
+        out[O_SE + i] = math.sqrt(c) if c > 0.0 or c != c else 0.0
+    n_contact = round(s[I_NC])
+    out[O_NC] = n_contact
+    out[O_NS] = round(s[I_NS])
+    out[O_NP] = round(s[I_NP])
+    out[O_TH] = s[I_TH] / n_contact if n_contact else 0.0
 
 
-def tan_bound(theta: float) -> float:
-    """tan(theta) for theta < pi/2 (up to 1e-9), else inf."""
-    return math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
+@numba.njit(cache=True)
+def evaluate_paper(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, mu, beta, R_min, scale, theta_birth,
+                   partial, out):
+    """The ``paper`` law at delta in one call: reach, :func:`assemble_paper` (or serial), :func:`finish`.
+
+    ``scale`` = N w [1/m²]; ``theta_birth`` as in :func:`assemble_paper`.  One call from Python
+    per evaluation keeps the per-step overhead of small populations low.
+    """
+    theta_max = 0.0
+    for tb in theta_birth:
+        if tb > theta_max:  # NaN (no committed contact) never is
+            theta_max = tb
+    n_active, theta = reach(r, R_min, r_o, k_e, beta, delta[0], delta[1], delta[2], theta_max)
+    tan_max = math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    if n_chunks > SERIAL_CHUNKS:
+        assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, tan_max,
+                       partial)
+    else:
+        assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth,
+                              tan_max, partial)
+    finish(partial, n_chunks, r.size, scale, out)
+    out[O_NA] = n_active
 
 
 @numba.njit(cache=True, inline="always")
@@ -618,62 +663,37 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     ``d`` a finite float array (3,), ``law`` valid, ``theta_birth`` None (every contact born
     now) or a float array (n,), ``workspace`` a :class:`Workspace` for ``pop``.
     """
-    p = pop.params
     tb = _EMPTY if theta_birth is None else theta_birth
-    theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
-    n_active = pop.n_reachable(d, theta_max)
-    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    out = np.empty(N_OUT)
+    r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
     if law == "paper":
-        tan_max = tan_bound(angle_bound(pop, d, theta_max))
-        kernel = assemble_paper if n_chunks > SERIAL_CHUNKS else assemble_paper_serial
-        kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d,
-               p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, tan_max, workspace.partial)
+        evaluate_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, r_o, k_e, E_star, lam, mu, beta,
+                       pop.R_min, scale, tb, workspace.partial, out)
     else:
+        theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
+        n_active = pop.n_reachable(d, theta_max)
         if history is None:
             from .state import MDRHistory
 
-            history = MDRHistory.virgin(pop, dn_cap=max(d[0], p.beta))
+            history = MDRHistory.virgin(pop, dn_cap=max(d[0], beta))
         hs = history
         assemble_mdr(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, hs.delta_c,
-                     p.r_o, p.k_e, p.E_star, p.lam, p.mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap,
+                     r_o, k_e, E_star, lam, mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap,
                      workspace.partial)
-    s = workspace.partial[:n_chunks].sum(axis=0)
-    return _finish(pop, d, s, n_active)
-
-
-def _finish(pop, d, s, n_active) -> Evaluation:
-    # on these few numbers Python floats are much faster than numpy calls, with the same
-    # IEEE operations in the same order (and a huge N w gives inf, never an exception)
-    n = pop.n
-    scale = pop.params.N * pop.weight
-    v = s.tolist()
-    f = v[I_F:I_F + 3]
-    cov = _covariance(f, v[I_FF:I_FF + 6], n, scale) if n > 1 else [[0.0] * 3 for _ in range(3)]
-    n_contact = int(round(v[I_NC]))
-    scaled = scale * s
+        finish(workspace.partial, (n_active + CHUNK - 1) // CHUNK, pop.n, scale, out)
+        out[O_NA] = n_active
     return Evaluation(
         delta=d,
-        stress=scaled[I_F:I_F + 3],
-        stderr=np.array([sqrt_nonneg(cov[i][i]) for i in range(3)]),
-        covariance=np.array(cov),
-        tangent=scaled[I_T:I_T + 9].reshape(3, 3),
-        n_contact=n_contact,
-        n_slip=int(round(v[I_NS])),
-        n_partial=int(round(v[I_NP])),
-        mean_theta=v[I_TH] / n_contact if n_contact else 0.0,
-        n_active=n_active,
+        stress=out[O_STRESS:O_STRESS + 3],
+        stderr=out[O_SE:O_SE + 3],
+        covariance=out[O_COV:O_COV + 9].reshape(3, 3),
+        tangent=out[O_TANGENT:O_TANGENT + 9].reshape(3, 3),
+        n_contact=int(out[O_NC]),
+        n_slip=int(out[O_NS]),
+        n_partial=int(out[O_NP]),
+        mean_theta=float(out[O_TH]),
+        n_active=int(out[O_NA]),
     )
-
-
-def _covariance(f, ff, n, scale):
-    """Covariance [Pa²] (nested lists) of the stress estimate from the sums of f_i and f_i f_j.
-
-    Covariance of the mean of n iid draws, scaled to stress: (N w n)² C_f / n = (N w)² n C_f,
-    multiplied in this order so that 0 stays 0 when (N w)² overflows.
-    """
-    c11, c22, c33, c12, c13, c23 = [(ff[m] - f[i] * f[j] / n) / (n - 1) * scale * scale * n
-                                    for m, (i, j) in enumerate(_FF_PAIRS)]
-    return [[c11, c12, c13], [c12, c22, c23], [c13, c23, c33]]
 
 
 def sqrt_nonneg(x: float) -> float:

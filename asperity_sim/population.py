@@ -262,6 +262,29 @@ def _check_seed(seed):
     return int(seed)
 
 
+@numba.njit(cache=True)
+def reach(r, R_min, r_o, k_e, beta, d1, d2, d3, theta_max):
+    """(n_active, theta bound): asperities, lowest first, that can touch at Delta (SPEC §3–§4).
+
+    Under policy follow theta = (2/pi) u theta_m(c, R) <= theta_m(c, R_min); ``theta_max``
+    [rad] raises the bound for frozen (``birth``) angles.  delta_n = cos(theta)(Delta_1 - r)
+    + sin(theta) s with s <= |Delta_shear|, so contact needs r < Delta_1 + |Delta_shear| tan(theta).
+    ``r`` is sorted.
+    """
+    shear = math.hypot(d2, d3)
+    closure = max(0.0, r_o + d1)
+    y = 1.0 - k_e * closure / R_min
+    theta = max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
+    if shear == 0.0:
+        r_max = d1
+    elif theta >= 0.5 * math.pi - 1e-9:
+        return r.size, theta
+    else:
+        r_max = d1 + shear * math.tan(theta)
+    r_max += 1e-12 * max(abs(r_max), beta)  # round-off margin at the contact edge
+    return np.searchsorted(r, r_max, side="right"), theta
+
+
 @dataclass(frozen=True, eq=False)
 class Population:
     """n sampled asperities as struct-of-arrays, sorted by height r.
@@ -376,24 +399,19 @@ class Population:
         return float(self.R.min())
 
     def n_reachable(self, delta, theta_max: float = 0.0) -> int:
-        """Number of asperities, lowest first, that can touch at displacement delta (SPEC §4).
+        """Number of asperities, lowest first, that can touch at displacement delta (:func:`reach`).
 
-        delta_n = cos(theta)(Delta_1 - r) + sin(theta) s with s <= |Delta_shear|, so contact needs
-        r < Delta_1 + |Delta_shear| tan(theta).  theta <= theta_m(c, R_min) for every asperity
-        under policy ``follow``; ``theta_max`` [rad] raises the bound for frozen (``birth``) angles.
+        ``theta_max`` [rad] raises the angle bound for frozen (``birth``) angles.
         """
-        shear = math.hypot(delta[1], delta[2])
-        closure = max(0.0, self.params.r_o + delta[0])
-        y = 1.0 - self.params.k_e * closure / self.R_min
-        theta = max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
-        if shear == 0.0:
-            r_max = delta[0]
-        elif theta >= 0.5 * math.pi - 1e-9:
-            return self.n
-        else:
-            r_max = delta[0] + shear * math.tan(theta)
-        r_max += 1e-12 * max(abs(r_max), self.params.beta)  # round-off margin at the contact edge
-        return int(self.r.searchsorted(r_max, side="right"))
+        p = self.params
+        return int(reach(self.r, self.R_min, p.r_o, p.k_e, p.beta, float(delta[0]), float(delta[1]),
+                         float(delta[2]), float(theta_max))[0])
+
+    @cached_property
+    def kernel_constants(self) -> tuple:
+        """(r_o, k_e, E_star, lam, mu, beta, N w): the scalars every evaluation passes to the kernels."""
+        p = self.params
+        return p.r_o, p.k_e, p.E_star, p.lam, p.mu, p.beta, p.N * self.weight
 
     def evaluate(self, delta, law: str = "paper", policy: str = "follow", theta_birth=None):
         """Interface stress, standard error, tangent and contact counts at delta (SPEC §6).

@@ -535,18 +535,25 @@ def theta_am(params: InterfaceParams, closure, n: int = 48):
     at R = k_e c (the rule without a split is built once per parameter set). ``closure`` [m] is c itself (the caller adds r_o); scalar or array.
     """
     _check_params(params)
+    if isinstance(closure, float):  # the common scalar call, without the array machinery
+        if not (math.isfinite(closure) and closure >= 0.0):
+            raise ValueError(f"closure = {closure!r} must be finite and >= 0 [m]")
+        return _theta_am_at(params, closure, n)
     c_arr = np.asarray(closure, dtype=float)
     if not np.all(np.isfinite(c_arr)) or np.any(c_arr < 0):
         raise ValueError(f"closure = {closure!r} must be finite and >= 0 [m]")
-    flat = c_arr.ravel()
-    res = np.empty(flat.shape)
-    lo, hi = params.R_bounds
-    for i, c in enumerate(flat):
-        # theta_m(c, R) has its only kink at R = k_e c; elsewhere the rule does not depend on c
-        R, w = radius_rule(params, c, n, slip_cut=False) if lo < params.k_e * c < hi else _theta_rule(params, n)
-        y = np.clip(1.0 - params.k_e * c / R, 0.0, 1.0)
-        res[i] = np.dot(w, np.arccos(y))
+    res = np.array([_theta_am_at(params, float(c), n) for c in c_arr.ravel()])
     return res.reshape(c_arr.shape) if c_arr.ndim else float(res[0])
+
+
+def _theta_am_at(params, c, n):
+    lo, hi = params.R_bounds
+    kc = params.k_e * c
+    # theta_m(c, R) has its only kink at R = k_e c; elsewhere the rule does not depend on c
+    R, w = radius_rule(params, c, n, slip_cut=False) if lo < kc < hi else _theta_rule(params, n)
+    y = 1.0 - kc / R
+    np.clip(y, 0.0, 1.0, out=y)
+    return float(np.dot(w, np.arccos(y, out=y)))
 
 
 def mean_sqrt_R(params: InterfaceParams) -> float:
