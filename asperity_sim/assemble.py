@@ -473,28 +473,19 @@ def finish(partial, n_chunks, n, scale, out):
 
 
 @numba.njit(cache=True)
-def evaluate_paper(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, mu, beta, R_min, scale, theta_birth,
-                   partial, out):
-    """The ``paper`` law at delta in one call: reach, :func:`assemble_paper` (or serial), :func:`finish`.
+def paper_bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
+    """(n_active, tan_max) of the ``paper`` kernels at delta: :func:`~asperity_sim.population.reach` and tan of its angle.
 
-    ``scale`` = N w [1/m²]; ``theta_birth`` as in :func:`assemble_paper`.  One call from Python
-    per evaluation keeps the per-step overhead of small populations low.
+    ``theta_birth`` as in :func:`assemble_paper` (its largest frozen angle raises the bound).
+    The kernels themselves are called from Python: calling them from here would compile the
+    serial and the parallel kernel into this function too (twice the first-run JIT time).
     """
     theta_max = 0.0
     for tb in theta_birth:
         if tb > theta_max:  # NaN (no committed contact) never is
             theta_max = tb
     n_active, theta = reach(r, R_min, r_o, k_e, beta, delta[0], delta[1], delta[2], theta_max)
-    tan_max = math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
-    n_chunks = (n_active + CHUNK - 1) // CHUNK
-    if n_chunks > SERIAL_CHUNKS:
-        assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, tan_max,
-                       partial)
-    else:
-        assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth,
-                              tan_max, partial)
-    finish(partial, n_chunks, r.size, scale, out)
-    out[O_NA] = n_active
+    return n_active, math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
 
 
 @numba.njit(cache=True, inline="always")
@@ -667,8 +658,10 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     out = np.empty(N_OUT)
     r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
     if law == "paper":
-        evaluate_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, r_o, k_e, E_star, lam, mu, beta,
-                       pop.R_min, scale, tb, workspace.partial, out)
+        n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+        kernel = assemble_paper if n_active > SERIAL_CHUNKS * CHUNK else assemble_paper_serial
+        kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, tb, tan_max,
+               workspace.partial)
     else:
         theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
         n_active = pop.n_reachable(d, theta_max)
@@ -680,8 +673,8 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
         assemble_mdr(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, hs.delta_c,
                      r_o, k_e, E_star, lam, mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap,
                      workspace.partial)
-        finish(workspace.partial, (n_active + CHUNK - 1) // CHUNK, pop.n, scale, out)
-        out[O_NA] = n_active
+    finish(workspace.partial, (n_active + CHUNK - 1) // CHUNK, pop.n, scale, out)
+    out[O_NA] = n_active
     return Evaluation(
         delta=d,
         stress=out[O_STRESS:O_STRESS + 3],
