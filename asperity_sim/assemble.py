@@ -474,7 +474,7 @@ def finish(partial, n_chunks, n, scale, out):
 
 @numba.njit(cache=True)
 def paper_bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
-    """(n_active, tan_max) of the ``paper`` kernels at delta: :func:`~asperity_sim.population.reach` and tan of its angle.
+    """(n_active, tan_max) of the kernels at delta: :func:`~asperity_sim.population.reach` and tan of its angle.
 
     ``theta_birth`` as in :func:`assemble_paper` (its largest frozen angle raises the bound).
     The kernels themselves are called from Python: calling them from here would compile the
@@ -657,14 +657,12 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     tb = _EMPTY if theta_birth is None else theta_birth
     out = np.empty(N_OUT)
     r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
+    n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
     if law == "paper":
-        n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
         kernel = assemble_paper if n_active > SERIAL_CHUNKS * CHUNK else assemble_paper_serial
         kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, tb, tan_max,
                workspace.partial)
     else:
-        theta_max = float(np.nanmax(tb, initial=0.0)) if tb.size else 0.0
-        n_active = pop.n_reachable(d, theta_max)
         if history is None:
             from .state import MDRHistory
 
