@@ -47,7 +47,7 @@ def test_band_validation():
 
 
 def test_standard_error_formula_with_band_weights():
-    """_finish with weight p/n: sigma = N p mean(f), se = N p sd(f)/sqrt(n), from per-asperity forces."""
+    """assemble.finish with weight p/n: sigma = N p mean(f), se = N p sd(f)/sqrt(n), from per-asperity forces."""
     d = np.array([6.0, 2.0, -1.0]) * um
     band = reach_height(S1, d[0], math.hypot(d[1], d[2]))
     pop = Population.sample(S1, 3000, seed=5, r_max=band)
