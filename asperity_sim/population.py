@@ -27,64 +27,127 @@ from scipy import special, stats
 from .params import InterfaceParams
 
 SAMPLERS = ("random", "sobol")
+_EMPTY = np.empty(0)
 SOBOL_BLOCK = 2**18
 N_MAX = 2**31 - 1
 
 
+@numba.njit(cache=True, inline="always")
+def _cos_u_at(target, b):
+    """Invert F(x) = x + b (x³ - x)/2 on [0, 1] at F = target: marginal CDF of x = cos u (Eq. 10)."""
+    lo, hi = 0.0, 1.0
+    x = target
+    for _ in range(100):
+        f = x + 0.5 * b * (x * x * x - x) - target
+        if f > 0.0:
+            hi = x
+        else:
+            lo = x
+        fp = 1.0 + 0.5 * b * (3.0 * x * x - 1.0)
+        xn = x - f / fp if fp > 0.0 else 0.5 * (lo + hi)
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+        if abs(xn - x) <= 1e-15:
+            return xn
+        x = xn
+    return x
+
+
+@numba.njit(cache=True, inline="always")
+def _phi_at(p, xi, b, c, d):
+    """Invert the conditional CDF of phi given x = cos u (Eq. 10) on [0, 2 pi) at probability p."""
+    two_pi = 2.0 * math.pi
+    a0 = 1.0 + 0.5 * b * (3.0 * xi * xi - 1.0)
+    a2 = 3.0 * (1.0 - xi * xi)
+    target = p * two_pi * a0
+    lo, hi = 0.0, two_pi
+    ph = p * two_pi
+    for _ in range(100):
+        f = a0 * ph + 0.5 * a2 * (c * math.sin(2.0 * ph) + d * (1.0 - math.cos(2.0 * ph))) - target
+        if f > 0.0:
+            hi = ph
+        else:
+            lo = ph
+        fp = a0 + a2 * (c * math.cos(2.0 * ph) + d * math.sin(2.0 * ph))
+        pn = ph - f / fp if fp > 0.0 else 0.5 * (lo + hi)
+        if not (lo < pn < hi):
+            pn = 0.5 * (lo + hi)
+        if abs(pn - ph) <= 1e-15:
+            return pn
+        ph = pn
+    return ph
+
+
 @numba.njit(cache=True)
 def _cos_u_from_uniform(p, b):
-    """Invert F(x) = x + b (x³ - x)/2 on [0, 1]: marginal CDF of x = cos u (Eq. 10)."""
     out = np.empty_like(p)
     for i in range(p.size):
-        target = p[i]
-        lo, hi = 0.0, 1.0
-        x = target
-        for _ in range(100):
-            f = x + 0.5 * b * (x * x * x - x) - target
-            if f > 0.0:
-                hi = x
-            else:
-                lo = x
-            fp = 1.0 + 0.5 * b * (3.0 * x * x - 1.0)
-            xn = x - f / fp if fp > 0.0 else 0.5 * (lo + hi)
-            if not (lo < xn < hi):
-                xn = 0.5 * (lo + hi)
-            if abs(xn - x) <= 1e-15:
-                x = xn
-                break
-            x = xn
-        out[i] = x
+        out[i] = _cos_u_at(p[i], b)
     return out
 
 
 @numba.njit(cache=True)
 def _phi_from_uniform(p, x, b, c, d):
-    """Invert the conditional CDF of phi given x = cos u (Eq. 10) on [0, 2 pi)."""
     out = np.empty_like(p)
-    two_pi = 2.0 * math.pi
     for i in range(p.size):
-        xi = x[i]
-        a0 = 1.0 + 0.5 * b * (3.0 * xi * xi - 1.0)
-        a2 = 3.0 * (1.0 - xi * xi)
-        target = p[i] * two_pi * a0
-        lo, hi = 0.0, two_pi
-        ph = p[i] * two_pi
-        for _ in range(100):
-            f = a0 * ph + 0.5 * a2 * (c * math.sin(2.0 * ph) + d * (1.0 - math.cos(2.0 * ph))) - target
-            if f > 0.0:
-                hi = ph
-            else:
-                lo = ph
-            fp = a0 + a2 * (c * math.cos(2.0 * ph) + d * math.sin(2.0 * ph))
-            pn = ph - f / fp if fp > 0.0 else 0.5 * (lo + hi)
-            if not (lo < pn < hi):
-                pn = 0.5 * (lo + hi)
-            if abs(pn - ph) <= 1e-15:
-                ph = pn
-                break
-            ph = pn
-        out[i] = ph
+        out[i] = _phi_at(p[i], x[i], b, c, d)
     return out
+
+
+# Standard normal quantile by Wichura's algorithm AS 241 (PPND16, Applied Statistics 37, 1988):
+# rational functions of degree 7 in three regions, about 1e-16 relative.  Coefficients from
+# the published algorithm, lowest degree first.
+_AS241_A = (3.387132872796366608, 133.14166789178437745, 1971.5909503065514427, 13731.693765509461125,
+            45921.953931549871457, 67265.770927008700853, 33430.575583588128105, 2509.0809287301226727)
+_AS241_B = (1.0, 42.313330701600911252, 687.1870074920579083, 5394.1960214247511077, 21213.794301586595867,
+            39307.89580009271061, 28729.085735721942674, 5226.495278852545925)
+_AS241_C = (1.42343711074968357734, 4.6303378461565452959, 5.7694972214606914055, 3.64784832476320460504,
+            1.27045825245236838258, 0.24178072517745061177, 0.0227238449892691845833, 7.7454501427834140764e-4)
+_AS241_D = (1.0, 2.05319162663775882187, 1.6763848301838038494, 0.68976733498510000455,
+            0.14810397642748007459, 0.0151986665636164571966, 5.475938084995344946e-4,
+            1.05075007164441684324e-9)
+_AS241_E = (6.6579046435011037772, 5.4637849111641143699, 1.7848265399172913358, 0.29656057182850489123,
+            0.026532189526576123093, 0.0012426609473880784386, 2.71155556874348757815e-5,
+            2.01033439929228813265e-7)
+_AS241_F = (1.0, 0.59983220655588793769, 0.13692988092273580531, 0.0148753612908506148525,
+            7.868691311456132591e-4, 1.8463183175100546818e-5, 1.4215117583164458887e-7,
+            2.04426310338993978564e-15)
+
+
+@numba.njit(cache=True, inline="always")
+def _ratio7(num, den, t):
+    """num(t) / den(t) for two degree-7 polynomials (coefficients lowest degree first), Horner."""
+    a = num[7]
+    b = den[7]
+    for k in range(6, -1, -1):
+        a = a * t + num[k]
+        b = b * t + den[k]
+    return a / b
+
+
+@numba.njit(cache=True, inline="always")
+def _ndtri_at(p):
+    """Standard normal quantile Phi^-1(p) for p in [0, 1] (-inf at 0, +inf at 1)."""
+    q = p - 0.5
+    if abs(q) <= 0.425:
+        return q * _ratio7(_AS241_A, _AS241_B, 0.180625 - q * q)
+    t = p if q < 0.0 else 1.0 - p
+    if not t > 0.0:
+        return -math.inf if q < 0.0 else math.inf
+    t = math.sqrt(-math.log(t))
+    if t <= 5.0:
+        x = _ratio7(_AS241_C, _AS241_D, t - 1.6)
+    else:
+        x = _ratio7(_AS241_E, _AS241_F, t - 5.0)
+    return -x if q < 0.0 else x
+
+
+@numba.njit(cache=True, inline="always")
+def _radius_at(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi):
+    """Truncated Gaussian relative radius [m] at probability p (SPEC §2); never 0."""
+    R = R_m + R_sigma * _ndtri_at(lo_cdf + p * (hi_cdf - lo_cdf))
+    R = min(max(R, lo), hi)
+    return max(R, 5e-324)  # R = 0 has probability zero but the quantile can return the bound itself
 
 
 # Inverse gamma CDF by table: cubic Hermite interpolation of the quantile function x(p)
@@ -115,20 +178,25 @@ def _quantile_table(shape: float):
     return x, slope
 
 
+@numba.njit(cache=True, inline="always")
+def _hermite_at(p, x_nodes, slopes, p_lo, h):
+    """Cubic Hermite interpolant of the tabulated quantile at p (NaN outside the table)."""
+    n_cells = x_nodes.size - 1
+    t = (p - p_lo) / h
+    if not (0.0 <= t <= n_cells):
+        return np.nan
+    k = min(int(t), n_cells - 1)
+    s = t - k
+    s2, s3 = s * s, s * s * s
+    return ((2.0 * s3 - 3.0 * s2 + 1.0) * x_nodes[k] + (s3 - 2.0 * s2 + s) * h * slopes[k]
+            + (-2.0 * s3 + 3.0 * s2) * x_nodes[k + 1] + (s3 - s2) * h * slopes[k + 1])
+
+
 @numba.njit(cache=True, parallel=True)
 def _hermite_quantile(p, x_nodes, slopes, p_lo, h, out):
-    """out = cubic Hermite interpolant of the tabulated quantile at p (NaN outside the table)."""
-    n_cells = x_nodes.size - 1
+    """out = :func:`_hermite_at` at every p."""
     for i in numba.prange(p.size):
-        t = (p[i] - p_lo) / h
-        if not (0.0 <= t <= n_cells):
-            out[i] = np.nan
-            continue
-        k = min(int(t), n_cells - 1)
-        s = t - k
-        s2, s3 = s * s, s * s * s
-        out[i] = ((2.0 * s3 - 3.0 * s2 + 1.0) * x_nodes[k] + (s3 - 2.0 * s2 + s) * h * slopes[k]
-                  + (-2.0 * s3 + 3.0 * s2) * x_nodes[k + 1] + (s3 - s2) * h * slopes[k + 1])
+        out[i] = _hermite_at(p[i], x_nodes, slopes, p_lo, h)
 
 
 def heights_from_uniform(params: InterfaceParams, p):
@@ -156,18 +224,28 @@ def band_probability(params: InterfaceParams, r_max) -> float:
     return float(special.gammainc(params.alpha + 1.0, r_max / params.beta))
 
 
-def radii_from_uniform(params: InterfaceParams, p):
-    """Truncated Gaussian relative radii R [m] from uniforms, SPEC §2."""
-    if params.R_sigma == 0.0:
-        return np.full_like(p, params.R_m)
+def _radius_constants(params: InterfaceParams):
+    """(R_m, R_sigma, Phi(a), Phi(b), lo, hi) of the truncated Gaussian of SPEC §2 [m, m, 1, 1, m, m]."""
     lo, hi = params.R_bounds
     a = (lo - params.R_m) / params.R_sigma
     b = (hi - params.R_m) / params.R_sigma
-    lo_cdf, hi_cdf = special.ndtr(a), special.ndtr(b)
-    R = params.R_m + params.R_sigma * special.ndtri(lo_cdf + p * (hi_cdf - lo_cdf))
-    R = np.clip(R, lo, hi)
-    # R = 0 has probability zero but the ppf can return the bound itself
-    return np.maximum(R, np.nextafter(0.0, 1.0))
+    return params.R_m, params.R_sigma, float(special.ndtr(a)), float(special.ndtr(b)), lo, hi
+
+
+@numba.njit(cache=True, parallel=True)
+def _radii(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, out):
+    for i in numba.prange(p.size):
+        out[i] = _radius_at(p[i], R_m, R_sigma, lo_cdf, hi_cdf, lo, hi)
+
+
+def radii_from_uniform(params: InterfaceParams, p):
+    """Truncated Gaussian relative radii R [m] from uniforms, SPEC §2 (inverse CDF)."""
+    p = np.ascontiguousarray(p, dtype=float)
+    if params.R_sigma == 0.0:
+        return np.full_like(p, params.R_m)
+    out = np.empty_like(p)
+    _radii(p.ravel(), *_radius_constants(params), out.ravel())
+    return out
 
 
 def orientation_from_uniform(params: InterfaceParams, p_u, p_phi):
@@ -212,24 +290,61 @@ def _argsort_unit(p):
     return order
 
 
+@numba.njit(cache=True)
+def _place_net(p, order):
+    """order[k] = index of the point in [k/n, (k+1)/n), if every such cell holds exactly one
+    point (a (0, m, 1)-net, as the first Sobol' coordinate for n = 2^m); False otherwise."""
+    n = p.size
+    order[:] = -1
+    for i in range(n):
+        b = int(p[i] * n)
+        if b >= n or order[b] >= 0:
+            return False
+        order[b] = i
+    return True
+
+
 @numba.njit(cache=True, parallel=True)
-def _sorted_columns(U, order):
-    """The four columns of the points U (n, 4), each contiguous and permuted by ``order``."""
-    n = order.size
-    cols = np.empty((4, n))
-    for i in numba.prange(n):
+def _gather(U, order, c0, c1, c2, c3):
+    """c_k[i] = U[order[i], k]: the points in sorted order, one contiguous column per coordinate."""
+    for i in numba.prange(order.size):
         j = order[i]
-        for k in range(4):
-            cols[k, i] = U[j, k]
-    return cols
+        c0[i], c1[i], c2[i], c3[i] = U[j, 0], U[j, 1], U[j, 2], U[j, 3]
 
 
 @numba.njit(cache=True, parallel=True)
-def _cos_sin(phi):
-    c, s = np.empty_like(phi), np.empty_like(phi)
-    for i in numba.prange(phi.size):
-        c[i], s[i] = math.cos(phi[i]), math.sin(phi[i])
-    return c, s
+def _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf,
+                  hi_cdf, lo, hi, b, c, d):
+    """In place, from the sorted uniforms held in r, R, u, cos_phi: the unit-scale gamma height,
+    the radius [m], u [rad] and cos phi, sin phi of SPEC §2–§3 (Eq. 10).
+
+    A height outside the quantile table (everywhere when ``x_nodes`` is empty) is left as -p,
+    its probability negated (sign bit set, also for p = 0), for scipy's inverse.
+    """
+    iso_u = b == 0.0
+    iso_phi = c == 0.0 and d == 0.0
+    two_pi = 2.0 * math.pi
+    for i in numba.prange(r.size):
+        p = r[i] * p_band
+        x = _hermite_at(p, x_nodes, slopes, p_lo, h) if x_nodes.size > 0 else np.nan
+        r[i] = -p if math.isnan(x) else x
+        R[i] = _radius_at(R[i], R_m, R_sigma, lo_cdf, hi_cdf, lo, hi) if radius else R_m
+        x = u[i] if iso_u else _cos_u_at(u[i], b)
+        x = min(max(x, 0.0), 1.0)
+        u[i] = math.acos(x)
+        ph = two_pi * cos_phi[i] if iso_phi else _phi_at(cos_phi[i], x, b, c, d)
+        cos_phi[i] = math.cos(ph)
+        sin_phi[i] = math.sin(ph)
+
+
+@numba.njit(cache=True)
+def _clip_running_max(r, r_band):
+    """r = running max of min(r, r_band), in place: round-off in the quantile never breaks the sort."""
+    m = 0.0
+    for i in range(r.size):
+        v = min(r[i], r_band)
+        m = max(m, v)
+        r[i] = m
 
 
 def unit_points(n: int, seed, sampler: str) -> np.ndarray:
@@ -334,17 +449,27 @@ class Population:
         if not p_band > 0.0:
             raise ValueError(f"r_max = {r_max!r} m holds no probability (P(r <= r_max) = {p_band!r}): band too narrow")
         U = unit_points(n, seed, sampler)
-        # the height is monotone in its uniform, so sorting the points by it sorts by height
-        # (O(n)); the running maximum only guards the order against round-off in the inverse CDF
-        U = _sorted_columns(U, _argsort_unit(U[:, 0]))
-        r = heights_from_uniform(params, U[0] * p_band if p_band < 1.0 else U[0])
-        if math.isfinite(r_band):
-            r = np.minimum(r, r_band)  # the inverse CDF may round up past the band edge
-        r = np.maximum.accumulate(r)
-        R = radii_from_uniform(params, U[1])
-        u, phi = orientation_from_uniform(params, U[2], U[3])
+        # the height is monotone in its uniform, so sorting the points by it sorts by height: in
+        # O(n), by direct placement when the first coordinate is a (0, m, 1)-net (Sobol', n = 2^m:
+        # one point per cell of width 1/n), else by a counting sort.  The sorted uniforms go
+        # straight into the output arrays (allocated by numpy, which asks for huge pages) and the
+        # inverse CDFs replace them in place: no intermediate array of n points.
+        order = np.empty(n, dtype=np.int64)
+        if not (sampler == "sobol" and n & (n - 1) == 0 and _place_net(U[:, 0], order)):
+            order = _argsort_unit(U[:, 0])
+        r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
+        _gather(U, order, r, R, u, cos_phi)
+        radius = params.R_sigma > 0.0
+        R_const = _radius_constants(params) if radius else (params.R_m, 0.0, 0.0, 1.0, params.R_m, params.R_m)
+        shape = params.alpha + 1.0
+        x_nodes, slopes = _quantile_table(shape) or (_EMPTY, _EMPTY)
+        _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, P_LO, H_NODE, radius, *R_const,
+                      params.b, params.c, params.d)
+        tail = np.signbit(r)  # outside the table (about 4 % of the heights): scipy's inverse
+        r[tail] = special.gammaincinv(shape, -r[tail])
         del U
-        cos_phi, sin_phi = _cos_sin(np.ascontiguousarray(phi))
+        r *= params.beta
+        _clip_running_max(r, r_band)
         return cls(
             params=params,
             r=r,

@@ -131,13 +131,14 @@ def test_reproducible(sampler, params):
         assert not np.array_equal(getattr(a, name), getattr(c, name)), name
 
 
-def test_rows_are_inverse_cdf_images_of_the_unit_points():
+@pytest.mark.parametrize("sampler, n", [("random", 300), ("sobol", 256)])
+def test_rows_are_inverse_cdf_images_of_the_unit_points(sampler, n):
     """Each asperity is the image of one point of [0,1)^4 (heights, radius, cos u, phi given u, in the
     order documented in population.py) through the exact inverse CDFs computed here independently,
-    and sorting by r keeps every row together."""
+    and sorting by r keeps every row together (counting sort for random points, direct placement
+    for Sobol' points with n = 2^m)."""
     p = with_orientation(0.5, 0.15, 0.2)
-    n = 300
-    U = unit_points(n, 9, "random")
+    U = unit_points(n, 9, sampler)
     r = stats.gamma.ppf(U[:, 0], p.alpha + 1, scale=p.beta)
     lo, hi = p.R_bounds
     R = stats.truncnorm.ppf(U[:, 1], (lo - p.R_m) / p.R_sigma, (hi - p.R_m) / p.R_sigma, loc=p.R_m, scale=p.R_sigma)
@@ -145,7 +146,7 @@ def test_rows_are_inverse_cdf_images_of_the_unit_points():
     ph = np.array([optimize.brentq(lambda t: phi_conditional_cdf(t, xx, p.b, p.c, p.d) - q, 0.0, 2 * np.pi,
                                    xtol=1e-14, rtol=1e-15) for q, xx in zip(U[:, 3], x)])
     order = np.argsort(r)
-    pop = Population.sample(p, n, seed=9, sampler="random")
+    pop = Population.sample(p, n, seed=9, sampler=sampler)
     np.testing.assert_allclose(pop.r, r[order], rtol=1e-10)
     np.testing.assert_allclose(pop.R, R[order], rtol=1e-9)
     np.testing.assert_allclose(np.cos(pop.u), x[order], rtol=0, atol=1e-10)
@@ -494,6 +495,43 @@ def test_linear_time_argsort_of_unit_points_is_numpys_stable_argsort():
     rng = np.random.default_rng(11)
     for p in (rng.random(50_000), np.repeat(rng.random(500), 7), np.zeros(10), np.array([0.5])):
         np.testing.assert_array_equal(_argsort_unit(p), np.argsort(p, kind="stable"))
+
+
+def test_direct_placement_of_a_sobol_net_is_the_stable_argsort():
+    """The first Sobol' coordinate of 2^m points has one point per cell of width 2^-m, so placing
+    each point in its cell sorts them; points without that property are refused (counting sort)."""
+    from asperity_sim.population import _place_net
+
+    for m in (0, 1, 7, 12):
+        p = unit_points(2**m, 4, "sobol")[:, 0].copy()
+        order = np.empty(p.size, dtype=np.int64)
+        assert _place_net(p, order)
+        np.testing.assert_array_equal(order, np.argsort(p, kind="stable"))
+    p = unit_points(4096, 4, "random")[:, 0].copy()
+    assert not _place_net(p, np.empty(p.size, dtype=np.int64))
+
+
+def test_normal_quantile_matches_scipy_ndtri():
+    """The radii use AS 241 in numba; scipy's ndtri is the reference (a few ulps), tails and ends included."""
+    import numba
+    from scipy import special
+
+    from asperity_sim.population import _ndtri_at
+
+    @numba.njit
+    def quantiles(p):
+        out = np.empty_like(p)
+        for i in range(p.size):
+            out[i] = _ndtri_at(p[i])
+        return out
+
+    rng = np.random.default_rng(8)
+    p = np.concatenate([rng.random(200_000), np.logspace(-300, -1, 2000), 1.0 - np.logspace(-16, -1, 2000),
+                        [0.0, 1.0, 0.5, 0.075, 0.925, 5e-324]])
+    got, exact = quantiles(p), special.ndtri(p)
+    assert np.array_equal(np.isinf(got), np.isinf(exact)) and np.array_equal(got[np.isinf(got)], exact[np.isinf(exact)])
+    fin = np.isfinite(exact)
+    assert np.all(np.abs(got[fin] - exact[fin]) <= 32 * np.spacing(np.maximum(np.abs(exact[fin]), 1e-300)))
 
 
 def test_sobol_points_drawn_in_blocks_equal_one_draw():
