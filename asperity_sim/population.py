@@ -33,20 +33,29 @@ N_MAX = 2**31 - 1
 
 
 @numba.njit(cache=True, inline="always")
+def _bracketed_newton(x, f, fp, lo, hi):
+    """(next x, lo, hi): a Newton step on an increasing function with value f and slope fp at x,
+    the bracket [lo, hi] of the root narrowed by the sign of f, and bisection when the step
+    leaves it (or the slope is not positive)."""
+    if f > 0.0:
+        hi = x
+    else:
+        lo = x
+    xn = x - f / fp if fp > 0.0 else 0.5 * (lo + hi)
+    if not (lo < xn < hi):
+        xn = 0.5 * (lo + hi)
+    return xn, lo, hi
+
+
+@numba.njit(cache=True, inline="always")
 def _cos_u_at(target, b):
     """Invert F(x) = x + b (x³ - x)/2 on [0, 1] at F = target: marginal CDF of x = cos u (Eq. 10)."""
     lo, hi = 0.0, 1.0
     x = target
     for _ in range(100):
         f = x + 0.5 * b * (x * x * x - x) - target
-        if f > 0.0:
-            hi = x
-        else:
-            lo = x
         fp = 1.0 + 0.5 * b * (3.0 * x * x - 1.0)
-        xn = x - f / fp if fp > 0.0 else 0.5 * (lo + hi)
-        if not (lo < xn < hi):
-            xn = 0.5 * (lo + hi)
+        xn, lo, hi = _bracketed_newton(x, f, fp, lo, hi)
         if abs(xn - x) <= 1e-15:
             return xn
         x = xn
@@ -64,14 +73,8 @@ def _phi_at(p, xi, b, c, d):
     ph = p * two_pi
     for _ in range(100):
         f = a0 * ph + 0.5 * a2 * (c * math.sin(2.0 * ph) + d * (1.0 - math.cos(2.0 * ph))) - target
-        if f > 0.0:
-            hi = ph
-        else:
-            lo = ph
         fp = a0 + a2 * (c * math.cos(2.0 * ph) + d * math.sin(2.0 * ph))
-        pn = ph - f / fp if fp > 0.0 else 0.5 * (lo + hi)
-        if not (lo < pn < hi):
-            pn = 0.5 * (lo + hi)
+        pn, lo, hi = _bracketed_newton(ph, f, fp, lo, hi)
         if abs(pn - ph) <= 1e-15:
             return pn
         ph = pn
