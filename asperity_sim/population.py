@@ -16,19 +16,18 @@ from __future__ import annotations
 
 import math
 import numbers
-import warnings
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numba
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from .params import InterfaceParams
+from .sobol import sobol_points
 
 SAMPLERS = ("random", "sobol")
 _EMPTY = np.empty(0)
-SOBOL_BLOCK = 2**18
 N_MAX = 2**31 - 1
 
 
@@ -169,7 +168,7 @@ def _quantile_table(shape: float):
     p = np.linspace(P_LO, P_HI, N_NODES + 1)
     x = special.gammaincinv(shape, p)
     with np.errstate(over="ignore"):
-        slope = np.exp(-stats.gamma.logpdf(x, shape))
+        slope = np.exp(special.gammaln(shape) + x - special.xlogy(shape - 1.0, x))  # 1 / gamma pdf
     if not np.all(np.isfinite(slope)):
         return None
     mid = 0.5 * (p[1:] + p[:-1])
@@ -354,16 +353,7 @@ def unit_points(n: int, seed, sampler: str) -> np.ndarray:
     """n points of [0, 1)^4 from the chosen sampler (the only random source)."""
     if sampler == "random":
         return np.random.default_rng(seed).random((n, 4))
-    sobol = stats.qmc.Sobol(d=4, scramble=True, seed=seed)
-    out = np.empty((n, 4))
-    with warnings.catch_warnings():
-        # balance properties want n = 2^m; any n still gives a valid randomised QMC estimate
-        warnings.filterwarnings("ignore", message=".*balance properties.*")
-        # consecutive blocks continue the same sequence (identical points), and scipy is ~10x
-        # faster on blocks of 2^18 than on one draw of 2^22
-        for i in range(0, n, SOBOL_BLOCK):
-            out[i:i + SOBOL_BLOCK] = sobol.random(min(SOBOL_BLOCK, n - i))
-    return out
+    return sobol_points(n, seed)
 
 
 def _check_n(n):

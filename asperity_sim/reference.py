@@ -58,7 +58,7 @@ import numbers
 
 import numba
 import numpy as np
-from scipy import integrate, special
+from scipy import special
 
 from .geometry import theta_m_and_slope
 from .laws.paper import paper_local
@@ -568,6 +568,8 @@ def mean_sqrt_R(params: InterfaceParams) -> float:
     def integrand(R):
         return math.sqrt(R) * math.exp(-0.5 * ((R - params.R_m) / s) ** 2) / norm
 
+    from scipy import integrate  # here, not at module level: ~0.2 s of every start-up
+
     return integrate.quad(integrand, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)[0]
 
 
@@ -601,6 +603,7 @@ def sigma_gw(params: InterfaceParams, delta_1: float, shear: float = 0.0):
                      - (a + 1.0) * math.log(p.beta))
     C = p.N * (4.0 / 3.0) * p.E_star * mean_sqrt_R(p) * scale
     opts = dict(epsabs=0.0, epsrel=1e-13, limit=200)
+    from scipy import integrate  # here, not at module level: ~0.2 s of every start-up
 
     def f_n(s):
         return (delta_1 * (1.0 - s)) ** 1.5 * math.exp(-delta_1 * s / p.beta)

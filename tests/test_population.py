@@ -532,19 +532,3 @@ def test_normal_quantile_matches_scipy_ndtri():
     assert np.array_equal(np.isinf(got), np.isinf(exact)) and np.array_equal(got[np.isinf(got)], exact[np.isinf(exact)])
     fin = np.isfinite(exact)
     assert np.all(np.abs(got[fin] - exact[fin]) <= 32 * np.spacing(np.maximum(np.abs(exact[fin]), 1e-300)))
-
-
-def test_sobol_points_drawn_in_blocks_equal_one_draw():
-    from asperity_sim.population import SOBOL_BLOCK
-
-    n = SOBOL_BLOCK + 12345
-    with pytest.warns(UserWarning, match="balance"):
-        one = stats.qmc.Sobol(d=4, scramble=True, seed=5).random(n)
-    np.testing.assert_array_equal(unit_points(n, 5, "sobol"), one)
-
-
-def test_from_arrays_rejects_bad_params_and_empty_arrays():
-    with pytest.raises(ValueError, match="InterfaceParams"):
-        Population.from_arrays({"alpha": 1.0}, [1e-6], [1e-4], [0.1], [0.2])
-    with pytest.raises(ValueError, match="empty"):
-        Population.from_arrays(presets.R1, [], [], [], [])
