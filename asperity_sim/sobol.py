@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-BITS = 32  # digits per coordinate: 2^32 points before the sequence repeats (N_MAX < 2^31)
+BITS = 32  # digits per coordinate (N_MAX < 2^31 points); held in int64: uint64 -> float is slow on x86-64
 DIM = 4
 BLOCK = 1 << 16  # points per parallel block
 # (degree s, coefficients a of the inner terms, initial m_1..m_s) of the primitive
@@ -29,8 +29,8 @@ _POLYNOMIALS = ((1, 0, (1,)), (2, 1, (1, 3)), (3, 1, (1, 3, 1)))
 
 
 def direction_numbers() -> np.ndarray:
-    """(DIM, BITS) uint64 direction numbers v_k = m_k 2^(BITS-k), k = 1..BITS (Bratley & Fox recurrence)."""
-    v = np.zeros((DIM, BITS), dtype=np.uint64)
+    """(DIM, BITS) int64 direction numbers v_k = m_k 2^(BITS-k), k = 1..BITS (Bratley & Fox recurrence)."""
+    v = np.zeros((DIM, BITS), dtype=np.int64)
     v[0] = [1 << (BITS - 1 - k) for k in range(BITS)]
     for j, (s, a, m_init) in enumerate(_POLYNOMIALS, start=1):
         m = list(m_init)
@@ -44,31 +44,38 @@ def direction_numbers() -> np.ndarray:
     return v
 
 
-def _digits(x: np.ndarray) -> np.ndarray:
-    """Binary digits of BITS-bit integers, most significant first: shape x.shape + (BITS,)."""
-    shifts = np.arange(BITS - 1, -1, -1, dtype=np.uint64)
-    return ((x[..., None] >> shifts) & np.uint64(1)).astype(np.uint8)
-
-
-def _from_digits(d: np.ndarray) -> np.ndarray:
-    weights = np.uint64(1) << np.arange(BITS - 1, -1, -1, dtype=np.uint64)
-    return (d.astype(np.uint64) * weights).sum(axis=-1, dtype=np.uint64)
+_DIRECTIONS = direction_numbers()
 
 
 def scrambled_directions(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Direction numbers after a random linear matrix scramble, and a random digital shift.
 
-    Digit i of every direction number of dimension j becomes digit i xor the sum (mod 2) of
-    L_j[i, l] times digit l over the more significant digits l < i: L_j is unit lower
-    triangular, hence invertible, so the scrambled points are still a digital net.
+    Digit i (most significant first) of every direction number of dimension j becomes the
+    parity of L_j[i, :] and its digits, with L_j unit lower triangular (digit i xor a random
+    sum of the more significant digits): L_j is invertible, so the points remain a digital net.
     """
-    v = direction_numbers()
-    lower = np.tril(rng.integers(0, 2, size=(DIM, BITS, BITS), dtype=np.uint8), k=-1)
-    lower[:, np.arange(BITS), np.arange(BITS)] = 1
-    digits = _digits(v)  # (DIM, k, digit)
-    scrambled = np.einsum("jil,jkl->jki", lower.astype(np.int64), digits.astype(np.int64)) & 1
-    shift = rng.integers(0, 1 << BITS, size=DIM, dtype=np.uint64)
-    return _from_digits(scrambled), shift
+    below = np.tril(rng.integers(0, 2, size=(DIM, BITS, BITS), dtype=np.int64), k=-1)
+    rows = below + np.eye(BITS, dtype=np.int64)  # rows[j, i, l]: digit l enters digit i
+    masks = (rows << np.arange(BITS - 1, -1, -1, dtype=np.int64)).sum(axis=2)  # row i as a BITS-bit mask
+    shift = rng.integers(0, 1 << BITS, size=DIM, dtype=np.int64)
+    return _scramble(_DIRECTIONS, masks), shift
+
+
+@numba.njit(cache=True)
+def _scramble(v, masks):
+    """out[j, k] has digit i = parity(masks[j, i] & v[j, k]) (digit 0 the most significant)."""
+    out = np.zeros_like(v)
+    for j in range(v.shape[0]):
+        for k in range(v.shape[1]):
+            y = 0
+            for i in range(BITS):
+                w, parity = masks[j, i] & v[j, k], 0
+                while w:
+                    parity ^= 1
+                    w &= w - 1
+                y |= parity << (BITS - 1 - i)
+            out[j, k] = y
+    return out
 
 
 @numba.njit(cache=True, inline="always")
@@ -112,8 +119,7 @@ def sobol_points(n: int, seed, scramble: bool = True) -> np.ndarray:
     if scramble:
         v, shift = scrambled_directions(np.random.default_rng(seed))
     else:
-        v, shift = direction_numbers(), np.zeros(DIM, dtype=np.uint64)
+        v, shift = _DIRECTIONS, np.zeros(DIM, dtype=np.int64)
     out = np.empty((n, DIM))
-    # int64 (the values fit in 32 bits): uint64 -> float conversion is slow on x86-64
-    _fill(v.astype(np.int64), shift.astype(np.int64), out)
+    _fill(v, shift, out)
     return out
