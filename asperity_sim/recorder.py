@@ -104,7 +104,8 @@ def run_attributes(params, *, n, seed, sampler, law, policy, path, version, call
         "sampler": sampler,
         "n_asperities": int(n),
         "seed": int(seed) if seed is not None else -1,
-        "seed_note": "-1 means unseeded (not reproducible)" if seed is None else "numpy PCG64 / scipy Sobol seed",
+        "seed_note": ("-1 means unseeded (not reproducible)" if seed is None
+                      else "seed of numpy PCG64 (random) or of the Sobol' scramble (asperity_sim.sobol)"),
         "load_path": path.describe(),
         "asperity_sim_version": version,
     }
