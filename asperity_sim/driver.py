@@ -207,6 +207,10 @@ class _Position:
     k_ref: float = 0.0        # largest stiffness of the ramped stress directions seen in the stage [Pa/m]
     start_delta: np.ndarray = field(default_factory=lambda: np.zeros(3))
     start_stress: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    # the converged point before the last one in this stage, for the cubic predictor (prev_s NaN: none)
+    prev_s: float = math.nan  # its fraction of the stage
+    prev_delta: np.ndarray = field(default_factory=lambda: np.zeros(3))  # its Delta [m]
+    prev_slope: np.ndarray = field(default_factory=lambda: np.zeros(3))  # its d Delta / d s [m]
 
 
 class _Run:
@@ -295,9 +299,13 @@ class _Run:
             else:
                 self.energy = {}
             pi, pf = arrays["pos_i"], arrays["pos_f"]
+            prev = arrays.get("pos_prev")  # (s, Delta, slope); absent in checkpoints before the cubic predictor
             self.pos = _Position(i_stage=int(pi[0]), started=bool(pi[1]), s=float(pf[0]), ds=float(pf[1]),
                                  k_ref=float(pf[2]), start_delta=arrays["pos_start_delta"].copy(),
                                  start_stress=arrays["pos_start_stress"].copy())
+            if prev is not None:
+                self.pos.prev_s, self.pos.prev_delta, self.pos.prev_slope = float(prev[0]), prev[1:4].copy(), \
+                    prev[4:7].copy()
             size = int(meta["steps_recorded"])
             for i in range(size):
                 self.rec.append(**{name: arrays[f"rec_{name}"][i] for name in self.variables})
@@ -331,7 +339,8 @@ class _Run:
                   "ev_mean_theta": np.array([ev.mean_theta]),
                   "pos_i": np.array([pos.i_stage, int(pos.started)], dtype=np.int64),
                   "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
-                  "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress}
+                  "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress,
+                  "pos_prev": np.concatenate([[pos.prev_s], pos.prev_delta, pos.prev_slope])}
         if self.theta_birth is not None:
             arrays["theta_birth"] = self.theta_birth
         if self.history is not None:
@@ -378,6 +387,7 @@ class _Run:
                         raise failure
                     pos.start_delta, pos.start_stress = self.delta.copy(), self.ev.stress.copy()
                     pos.s, pos.ds = 0.0, nominal
+                    pos.prev_s = math.nan
                     pos.k_ref = (effective_stiffness(self.ev, free, _ramped(free, pos.start_stress, end))
                                  if free.any() else 0.0)
                     pos.started = True
@@ -395,6 +405,9 @@ class _Run:
                     target_delta = np.where(free, self.delta, pos.start_delta + s_new * (end - pos.start_delta))
                     target_stress = np.where(free, pos.start_stress + s_new * (end - pos.start_stress), 0.0)
                     guess = _predict(self.ev, self.delta, target_delta, target_stress, free)
+                    slope = (guess - self.delta) / (s_new - s)  # d Delta / d s at s (free components)
+                    if free.any() and pos.prev_s == pos.prev_s:
+                        guess = _cubic_predict(guess, self.delta, slope, pos, s, s_new, free)
                     result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
                     if not result.converged:
                         cuts += 1
@@ -405,6 +418,7 @@ class _Run:
                         ds *= 0.5
                         continue
                     consistent = False
+                    pos.prev_s, pos.prev_delta, pos.prev_slope = s, self.delta, slope
                     ev = self.ev = result.evaluation
                     self.delta = delta = ev.delta.copy()
                     if self.history is not None:  # commit the springs first: they were evaluated with the old angles
@@ -641,6 +655,31 @@ def _predict(ev, delta, target_delta, target_stress, free):
                 guess[free] = delta[free] + step
     except np.linalg.LinAlgError:
         pass
+    return guess
+
+
+def _cubic_predict(linear, delta, slope, pos, s, s_new, free):
+    """Free components of the guess from the cubic through the last two converged points.
+
+    The tangent predictor ``linear`` is first order in the increment; the cubic Hermite
+    through (prev_s, prev_delta, prev_slope) and (s, delta, slope), extrapolated to s_new,
+    is third order on a smooth path.  Kept only where the extrapolation is mild (the new
+    increment at most twice the previous one) and its correction smaller than the tangent
+    step itself; otherwise ``linear`` (near kinks: contact onset, stick-slip changes).
+    """
+    h0 = s - pos.prev_s
+    if not 0.0 < s_new - s <= 2.0 * h0:
+        return linear
+    t = 1.0 + (s_new - s) / h0
+    t2, t3 = t * t, t * t * t
+    # Hermite basis at t (0 at prev_s, 1 at s), on Python floats: three components, no numpy overhead
+    b0, b1, b2, b3 = 2.0 * t3 - 3.0 * t2 + 1.0, (t3 - 2.0 * t2 + t) * h0, 3.0 * t2 - 2.0 * t3, (t3 - t2) * h0
+    guess = linear.copy()
+    x0, m0, x1, m1, lin = (a.tolist() for a in (pos.prev_delta, pos.prev_slope, delta, slope, linear))
+    for k in np.flatnonzero(free).tolist():
+        cubic = b0 * x0[k] + b1 * m0[k] + b2 * x1[k] + b3 * m1[k]
+        if abs(cubic - lin[k]) <= abs(lin[k] - x1[k]):  # False for NaN
+            guess[k] = cubic
     return guess
 
 

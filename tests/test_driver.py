@@ -840,3 +840,52 @@ def test_bad_inputs_raise_value_error_before_any_work(no_work, kw, word):
 def test_bad_settings_or_population_type_raise_value_error(no_work, kw):
     with pytest.raises(ValueError):
         simulate(presets.R1, GOOD_PATH, n=100, **kw)
+
+
+def test_cubic_predictor_is_third_order_on_a_smooth_path_and_falls_back_at_a_kink():
+    """The Hermite extrapolation from two converged points (values and exact slopes) has an
+    error O(h^4), far below the tangent predictor's O(h^2); at a slope jump it keeps the tangent."""
+    from asperity_sim.driver import _cubic_predict, _Position
+
+    def x(s):
+        return np.array([np.exp(s), 0.0, np.sin(3.0 * s)])
+
+    def dx(s):
+        return np.array([np.exp(s), 0.0, 3.0 * np.cos(3.0 * s)])
+
+    free = np.array([True, False, True])
+    errors = []
+    for h in (0.1, 0.05):
+        s0, s1, s2 = 0.3 - h, 0.3, 0.3 + h
+        pos = _Position(prev_s=s0, prev_delta=x(s0), prev_slope=dx(s0))
+        linear = x(s1) + h * dx(s1)
+        guess = _cubic_predict(linear, x(s1), dx(s1), pos, s1, s2, free)
+        err_lin, err_cub = np.abs(linear - x(s2))[free], np.abs(guess - x(s2))[free]
+        assert np.all(err_cub < 0.05 * err_lin)
+        assert guess[1] == linear[1]  # prescribed components are left alone
+        errors.append(err_cub)
+    assert np.all(errors[0] / errors[1] > 2.0**4 * 0.8)  # fourth-order local error
+    # a kink: the previous slope points the other way, so the cubic would overshoot
+    pos = _Position(prev_s=0.2, prev_delta=x(0.3) + 0.1 * dx(0.3), prev_slope=dx(0.3))
+    linear = x(0.3) + 0.1 * dx(0.3)
+    np.testing.assert_array_equal(_cubic_predict(linear, x(0.3), dx(0.3), pos, 0.3, 0.4, free), linear)
+
+
+def test_cubic_predictor_saves_newton_iterations_on_the_fig13_path():
+    """Same converged curve (to the solver tolerance) with fewer iterations than the tangent predictor alone."""
+    from asperity_sim import driver
+
+    p = presets.R1
+    path = paths.constant_normal_shear(500e6, 50e-6, 20)
+    pop = Population.sample(p, 2**14, seed=3, sampler="sobol")
+    settings = SolverSettings(rtol=1e-9)
+    cubic = simulate(p, path, population=pop, settings=settings)
+    original = driver._cubic_predict
+    driver._cubic_predict = lambda linear, *args: linear
+    try:
+        linear = simulate(p, path, population=pop, settings=settings)
+    finally:
+        driver._cubic_predict = original
+    assert int(cubic.iterations.sum()) < 0.9 * int(linear.iterations.sum())
+    np.testing.assert_allclose(cubic.stress.values, linear.stress.values, rtol=1e-8, atol=1e-6 * 500e6)
+    np.testing.assert_allclose(cubic.displacement.values, linear.displacement.values, rtol=1e-7)
