@@ -406,7 +406,7 @@ class _Run:
                     target_stress = np.where(free, pos.start_stress + s_new * (end - pos.start_stress), 0.0)
                     guess = _predict(self.ev, self.delta, target_delta, target_stress, free)
                     slope = (guess - self.delta) / (s_new - s)  # d Delta / d s at s (free components)
-                    if free.any() and pos.prev_s == pos.prev_s:
+                    if free.any() and not math.isnan(pos.prev_s):
                         guess = _cubic_predict(guess, self.delta, slope, pos, s, s_new, free)
                     result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
                     if not result.converged:
