@@ -50,9 +50,10 @@ _DIRECTIONS = direction_numbers()
 def scrambled_directions(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Direction numbers after a random linear matrix scramble, and a random digital shift.
 
-    Digit i (most significant first) of every direction number of dimension j becomes the
-    parity of L_j[i, :] and its digits, with L_j unit lower triangular (digit i xor a random
-    sum of the more significant digits): L_j is invertible, so the points remain a digital net.
+    Digit i (most significant first) of every direction number of dimension j becomes digit i
+    xor a random sum (mod 2) of the more significant digits, i.e. the digits are multiplied by
+    a random unit lower-triangular binary matrix L_j; L_j is invertible, so the points remain
+    a digital net.
     """
     below = np.tril(rng.integers(0, 2, size=(DIM, BITS, BITS), dtype=np.int64), k=-1)
     rows = below + np.eye(BITS, dtype=np.int64)  # rows[j, i, l]: digit l enters digit i
