@@ -24,11 +24,13 @@ import numpy as np
 from scipy import special
 
 from .params import InterfaceParams
-from .sobol import sobol_points
+from .sobol import BITS as SOBOL_BITS
+from .sobol import net_directions, net_next, net_point, sobol_points
 
 SAMPLERS = ("random", "sobol")
 _EMPTY = np.empty(0)
 N_MAX = 2**31 - 1
+NET_BLOCK = 4096  # Sobol' points per parallel block of _sample_net
 
 
 @numba.njit(cache=True, inline="always")
@@ -292,20 +294,6 @@ def _argsort_unit(p):
     return order
 
 
-@numba.njit(cache=True)
-def _place_net(p, order):
-    """order[k] = index of the point in [k/n, (k+1)/n), if every such cell holds exactly one
-    point (a (0, m, 1)-net, as the first Sobol' coordinate for n = 2^m); False otherwise."""
-    n = p.size
-    order[:] = -1
-    for i in range(n):
-        b = int(p[i] * n)
-        if b >= n or order[b] >= 0:
-            return False
-        order[b] = i
-    return True
-
-
 @numba.njit(cache=True, parallel=True)
 def _gather(U, order, c0, c1, c2, c3):
     """c_k[i] = U[order[i], k]: the points in sorted order, one contiguous column per coordinate."""
@@ -314,29 +302,52 @@ def _gather(U, order, c0, c1, c2, c3):
         c0[i], c1[i], c2[i], c3[i] = U[j, 0], U[j, 1], U[j, 2], U[j, 3]
 
 
+@numba.njit(cache=True, inline="always")
+def _asperity_at(p_r, p_R, p_u, p_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf,
+                 lo, hi, b, c, d):
+    """(unit-scale gamma height, radius [m], u [rad], cos phi, sin phi) of the uniforms (p_r, p_R, p_u, p_phi),
+    SPEC §2–§3 (Eq. 10).
+
+    A height outside the quantile table (everywhere when ``x_nodes`` is empty) is returned as
+    -p, its probability negated (sign bit set, also for p = 0), for scipy's inverse.
+    """
+    p = p_r * p_band
+    x = _hermite_at(p, x_nodes, slopes, p_lo, h) if x_nodes.size > 0 else np.nan
+    r = -p if math.isnan(x) else x
+    R = _radius_at(p_R, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi) if radius else R_m
+    x = p_u if b == 0.0 else _cos_u_at(p_u, b)
+    x = min(max(x, 0.0), 1.0)
+    ph = 2.0 * math.pi * p_phi if c == 0.0 and d == 0.0 else _phi_at(p_phi, x, b, c, d)
+    return r, R, math.acos(x), math.cos(ph), math.sin(ph)
+
+
 @numba.njit(cache=True, parallel=True)
 def _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf,
                   hi_cdf, lo, hi, b, c, d):
-    """In place, from the sorted uniforms held in r, R, u, cos_phi: the unit-scale gamma height,
-    the radius [m], u [rad] and cos phi, sin phi of SPEC §2–§3 (Eq. 10).
-
-    A height outside the quantile table (everywhere when ``x_nodes`` is empty) is left as -p,
-    its probability negated (sign bit set, also for p = 0), for scipy's inverse.
-    """
-    iso_u = b == 0.0
-    iso_phi = c == 0.0 and d == 0.0
-    two_pi = 2.0 * math.pi
+    """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each."""
     for i in numba.prange(r.size):
-        p = r[i] * p_band
-        x = _hermite_at(p, x_nodes, slopes, p_lo, h) if x_nodes.size > 0 else np.nan
-        r[i] = -p if math.isnan(x) else x
-        R[i] = _radius_at(R[i], R_m, R_sigma, lo_cdf, hi_cdf, lo, hi) if radius else R_m
-        x = u[i] if iso_u else _cos_u_at(u[i], b)
-        x = min(max(x, 0.0), 1.0)
-        u[i] = math.acos(x)
-        ph = two_pi * cos_phi[i] if iso_phi else _phi_at(cos_phi[i], x, b, c, d)
-        cos_phi[i] = math.cos(ph)
-        sin_phi[i] = math.sin(ph)
+        r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
+            r[i], R[i], u[i], cos_phi[i], p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf,
+            lo, hi, b, c, d)
+
+
+@numba.njit(cache=True, parallel=True)
+def _sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma,
+                lo_cdf, hi_cdf, lo, hi, b, c, d):
+    """The scrambled Sobol' net of r.size = 2^m points (:func:`asperity_sim.sobol.net_directions`) through
+    :func:`_asperity_at`, generated in increasing order of the height uniform: already sorted, no
+    array of uniforms.  Blocks of points run in parallel, each from its first point computed directly."""
+    n = r.size
+    scale = 1.0 / float(1 << SOBOL_BITS)
+    for blk in numba.prange((n + NET_BLOCK - 1) // NET_BLOCK):
+        i0, i1 = blk * NET_BLOCK, min(n, (blk + 1) * NET_BLOCK)
+        x = np.empty(4, dtype=np.int64)
+        net_point(W, shift, s, i0, x)
+        for i in range(i0, i1):
+            r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
+                float(x[0]) * scale, float(x[1]) * scale, float(x[2]) * scale, float(x[3]) * scale, p_band,
+                x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
+            net_next(W, i, x)
 
 
 @numba.njit(cache=True)
@@ -441,26 +452,26 @@ class Population:
         p_band, r_band = band_probability(params, r_max), math.inf if r_max is None else float(r_max)
         if not p_band > 0.0:
             raise ValueError(f"r_max = {r_max!r} m holds no probability (P(r <= r_max) = {p_band!r}): band too narrow")
-        U = unit_points(n, seed, sampler)
-        # the height is monotone in its uniform, so sorting the points by it sorts by height: in
-        # O(n), by direct placement when the first coordinate is a (0, m, 1)-net (Sobol', n = 2^m:
-        # one point per cell of width 1/n), else by a counting sort.  The sorted uniforms go
-        # straight into the output arrays (allocated by numpy, which asks for huge pages) and the
-        # inverse CDFs replace them in place: no intermediate array of n points.
-        order = np.empty(n, dtype=np.int64)
-        if not (sampler == "sobol" and n & (n - 1) == 0 and _place_net(U[:, 0], order)):
-            order = _argsort_unit(U[:, 0])
+        # the height is monotone in its uniform, so sorting the points by it sorts by height.
+        # Sobol', n = 2^m: the first coordinate is a (0, m, 1)-net (one point per cell of width
+        # 1/n), so the points are generated directly in that order (no sort, no array of uniforms).
+        # Otherwise an O(n) counting sort; the sorted uniforms go straight into the output arrays
+        # (allocated by numpy, which asks for huge pages) and the inverse CDFs replace them in place.
         r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
-        _gather(U, order, r, R, u, cos_phi)
         radius = params.R_sigma > 0.0
         R_const = _radius_constants(params) if radius else (params.R_m, 0.0, 0.0, 1.0, params.R_m, params.R_m)
         shape = params.alpha + 1.0
         x_nodes, slopes = _quantile_table(shape) or (_EMPTY, _EMPTY)
-        _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, P_LO, H_NODE, radius, *R_const,
-                      params.b, params.c, params.d)
+        constants = (p_band, x_nodes, slopes, P_LO, H_NODE, radius, *R_const, params.b, params.c, params.d)
+        if sampler == "sobol" and n & (n - 1) == 0:
+            _sample_net(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
+        else:
+            U = unit_points(n, seed, sampler)
+            _gather(U, _argsort_unit(U[:, 0]), r, R, u, cos_phi)
+            del U
+            _inverse_cdfs(r, R, u, cos_phi, sin_phi, *constants)
         tail = np.signbit(r)  # outside the table (about 4 % of the heights): scipy's inverse
         r[tail] = special.gammaincinv(shape, -r[tail])
-        del U
         r *= params.beta
         _clip_running_max(r, r_band)
         return cls(

@@ -497,18 +497,37 @@ def test_linear_time_argsort_of_unit_points_is_numpys_stable_argsort():
         np.testing.assert_array_equal(_argsort_unit(p), np.argsort(p, kind="stable"))
 
 
-def test_direct_placement_of_a_sobol_net_is_the_stable_argsort():
-    """The first Sobol' coordinate of 2^m points has one point per cell of width 2^-m, so placing
-    each point in its cell sorts them; points without that property are refused (counting sort)."""
-    from asperity_sim.population import _place_net
+@pytest.mark.parametrize("params, r_max", [(presets.R1, None), (ISO.replace(b=0.8, c=0.1, d=-0.05), None),
+                                           (ISO.replace(alpha=-0.5), 3e-6)])
+def test_sobol_population_generated_in_height_order_equals_the_sorted_points(params, r_max):
+    """Sobol', n = 2^m: the points are generated directly in increasing order of the height
+    uniform (asperity_sim.sobol.net_directions).  Same bits as sorting sobol_points by it and
+    mapping each through the inverse CDFs; several parallel blocks, on 1 and 2 threads."""
+    import numba
 
-    for m in (0, 1, 7, 12):
-        p = unit_points(2**m, 4, "sobol")[:, 0].copy()
-        order = np.empty(p.size, dtype=np.int64)
-        assert _place_net(p, order)
-        np.testing.assert_array_equal(order, np.argsort(p, kind="stable"))
-    p = unit_points(4096, 4, "random")[:, 0].copy()
-    assert not _place_net(p, np.empty(p.size, dtype=np.int64))
+    from asperity_sim import population as P
+
+    for m, seed in ((0, 2), (5, 0), (14, 3)):  # 2^14 spans four blocks of NET_BLOCK
+        n = 2**m
+        U = P.sobol_points(n, seed)
+        arrays = [np.ascontiguousarray(U[np.argsort(U[:, 0], kind="stable"), k]) for k in range(4)] + [np.empty(n)]
+        r, R, u, cos_phi, sin_phi = arrays
+        p_band = P.band_probability(params, r_max)
+        table = P._quantile_table(params.alpha + 1.0) or (P._EMPTY, P._EMPTY)
+        P._inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, *table, P.P_LO, P.H_NODE, True,
+                        *P._radius_constants(params), params.b, params.c, params.d)
+        tail = np.signbit(r)
+        r[tail] = P.special.gammaincinv(params.alpha + 1.0, -r[tail])
+        r = np.maximum.accumulate(np.minimum(r * params.beta, math.inf if r_max is None else r_max))
+        before = numba.get_num_threads()
+        try:
+            for threads in sorted({1, before}):
+                numba.set_num_threads(threads)
+                pop = Population.sample(params, n, seed=seed, sampler="sobol", r_max=r_max)
+                for name, expected in zip(("r", "R", "u", "cos_phi", "sin_phi"), (r, R, u, cos_phi, sin_phi)):
+                    np.testing.assert_array_equal(getattr(pop, name), expected, err_msg=f"{name}, m = {m}")
+        finally:
+            numba.set_num_threads(before)
 
 
 def test_normal_quantile_matches_scipy_ndtri():

@@ -71,3 +71,27 @@ def test_randomised_qmc_estimate_is_unbiased_and_beats_monte_carlo():
 def test_bad_sample_size_names_the_range(n):
     with pytest.raises(ValueError, match="valid range"):
         sobol_points(n, 0)
+
+
+def test_net_directions_visit_the_scrambled_points_in_order_of_their_first_coordinate():
+    """net_point at cell c, then net_next, give the points of sobol_points (same seed) sorted by
+    their first coordinate, which falls in cell c; a block may start anywhere."""
+
+    @numba.njit
+    def walk(W, shift, s, start, count):
+        out = np.empty((count, sobol.DIM), dtype=np.int64)
+        x = np.empty(sobol.DIM, dtype=np.int64)
+        sobol.net_point(W, shift, s, start, x)
+        for i in range(count):
+            out[i] = x
+            sobol.net_next(W, start + i, x)
+        return out
+
+    for m, seed in ((0, 1), (1, 0), (6, 2), (13, 5)):
+        n = 2**m
+        W, shift, s = sobol.net_directions(m, seed)
+        got = walk(W, shift, s, 0, n) / 2.0**sobol.BITS
+        expected = sobol_points(n, seed)
+        np.testing.assert_array_equal(got, expected[np.argsort(expected[:, 0])])
+        np.testing.assert_array_equal(np.floor(got[:, 0] * n), np.arange(n))
+        np.testing.assert_array_equal(walk(W, shift, s, n // 3, n - n // 3) / 2.0**sobol.BITS, got[n // 3:])
