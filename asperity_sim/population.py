@@ -154,64 +154,115 @@ def _radius_at(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi):
     return max(R, 5e-324)  # R = 0 has probability zero but the quantile can return the bound itself
 
 
-# Inverse gamma CDF by table: cubic Hermite interpolation of the quantile function x(p)
-# (nodes and slopes dx/dp = 1/pdf(x) exact from scipy) on [P_LO, P_HI]; scipy's gammaincinv
-# (about 0.45 s per million) outside it.  The table is checked against gammaincinv at every
-# cell midpoint when built and used only if it is within TABLE_RTOL there (about 1e-14 for
-# the presets; shapes far below 1, whose quantile is too steep near p = 0, fall back to scipy).
+# Inverse gamma CDF by table: cubic Hermite interpolation of the quantile function x(p), nodes
+# and slopes exact from scipy, in three pieces: x(p) on [P_LO, P_HI]; the lower tail in
+# t = p^(1/shape) on [0, P_LO^(1/shape)] (x is analytic in t at p = 0, about (Gamma(shape + 1)
+# p)^(1/shape)); the upper tail in t = -log(1 - p) on [-log(1 - P_HI), T_MAX] (x is nearly
+# linear in t as p -> 1; every sampler's uniform has 1 - p >= 2^-53, t <= 36.8).  Each piece is
+# checked against scipy at every cell midpoint when built and used only if it is within
+# TABLE_RTOL there (about 1e-14 for the presets); where a piece is not accurate (shapes far
+# below 1, whose quantile is too steep near p = 0) or does not reach, scipy's gammaincinv
+# (about 0.5 s per million) is used.
 P_LO, P_HI, N_NODES = 0.02, 0.98, 2**15
 H_NODE = (P_HI - P_LO) / N_NODES  # node spacing in p
+N_TAIL, T_MAX = 2**13, 40.0
 TABLE_RTOL = 1e-13
+
+
+def _checked_piece(t, x, slope, exact_at):
+    """(x, slope, cells) of one piece if its Hermite interpolant meets TABLE_RTOL at every cell
+    midpoint, else cells = -1 (never used).
+
+    The spacing is (t[-1] - t[0]) / cells, as the kernel computes it (t[1] - t[0] differs in its
+    last digits, which shifts the far cells by up to 1e-13)."""
+    cells = t.size - 1
+    h = (t[-1] - t[0]) / cells
+    mid = 0.5 * (t[1:] + t[:-1])
+    got = np.empty_like(mid)
+    nodes = np.stack([x, slope])
+    _hermite_many(mid, nodes, t[0], h, cells, got)
+    exact = exact_at(mid)
+    ok = np.all(np.isfinite(slope)) and np.all(np.abs(got - exact) <= TABLE_RTOL * exact)
+    return x, slope, cells if ok else -1
 
 
 @lru_cache(maxsize=8)
 def _quantile_table(shape: float):
-    """(nodes Q(p_k), slopes Q'(p_k)) of the unit-scale gamma quantile, p_k uniform on [P_LO, P_HI]; None if not accurate."""
-    p = np.linspace(P_LO, P_HI, N_NODES + 1)
-    x = special.gammaincinv(shape, p)
-    with np.errstate(over="ignore"):
-        slope = np.exp(special.gammaln(shape) + x - special.xlogy(shape - 1.0, x))  # 1 / gamma pdf
-    if not np.all(np.isfinite(slope)):
-        return None
-    mid = 0.5 * (p[1:] + p[:-1])
-    got = np.empty_like(mid)
-    _hermite_quantile(mid, x, slope, P_LO, H_NODE, got)
-    exact = special.gammaincinv(shape, mid)
-    if not np.all(np.abs(got - exact) <= TABLE_RTOL * exact):
-        return None
-    return x, slope
+    """The tables of the unit-scale gamma quantile: nodes (6, N_NODES + 1), the values and slopes
+    of the middle, lower and upper pieces (padded), and grid = (start, spacing, cells) of each
+    piece then 1/shape; cells = -1 marks a piece that is not accurate."""
+    gamma_pdf = lambda x: np.exp(special.xlogy(shape - 1.0, x) - x - special.gammaln(shape))  # noqa: E731
+    t_lo, t_hi = P_LO ** (1.0 / shape), -math.log1p(-P_HI)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        p = np.linspace(P_LO, P_HI, N_NODES + 1)
+        x = special.gammaincinv(shape, p)
+        pieces = [_checked_piece(p, x, 1.0 / gamma_pdf(x), lambda m: special.gammaincinv(shape, m))]
+        if t_lo > 0.0:  # else shape is so small that P_LO^(1/shape) underflows: scipy
+            t = np.linspace(0.0, t_lo, N_TAIL + 1)  # lower tail, p = t^shape
+            x = special.gammaincinv(shape, t**shape)
+            slope = shape * t ** (shape - 1.0) / gamma_pdf(x)
+            slope[0] = special.gamma(shape + 1.0) ** (1.0 / shape)  # the limit of dx/dt at t = 0
+            pieces.append(_checked_piece(t, x, slope, lambda m: special.gammaincinv(shape, m**shape)))
+        else:
+            pieces.append((_EMPTY, _EMPTY, -1))
+        t = np.linspace(t_hi, T_MAX, N_TAIL + 1)  # upper tail, 1 - p = exp(-t)
+        q = np.exp(-t)
+        x = special.gammainccinv(shape, q)
+        pieces.append(_checked_piece(t, x, q / gamma_pdf(x), lambda m: special.gammainccinv(shape, np.exp(-m))))
+    nodes = np.full((6, N_NODES + 1), np.nan)
+    for i, (x, slope, _) in enumerate(pieces):
+        nodes[2 * i, :x.size], nodes[2 * i + 1, :x.size] = x, slope
+    starts, spans = (P_LO, 0.0, t_hi), (P_HI - P_LO, t_lo, T_MAX - t_hi)
+    grid = [v for (_, _, cells), t0, span in zip(pieces, starts, spans)
+            for v in (t0, span / cells if cells > 0 else 1.0, cells)]
+    return nodes, np.array(grid + [1.0 / shape])
 
 
 @numba.njit(cache=True, inline="always")
-def _hermite_at(p, x_nodes, slopes, p_lo, h):
-    """Cubic Hermite interpolant of the tabulated quantile at p (NaN outside the table)."""
-    n_cells = x_nodes.size - 1
-    t = (p - p_lo) / h
-    if not (0.0 <= t <= n_cells):
+def _hermite_at(t, nodes, piece, t0, h, cells):
+    """Cubic Hermite interpolant of piece ``piece`` of the quantile tables at t (NaN outside it)."""
+    s = (t - t0) / h
+    if not (0.0 <= s <= cells):
         return np.nan
-    k = min(int(t), n_cells - 1)
-    s = t - k
+    k = min(int(s), int(cells) - 1)
+    s -= k
     s2, s3 = s * s, s * s * s
-    return ((2.0 * s3 - 3.0 * s2 + 1.0) * x_nodes[k] + (s3 - 2.0 * s2 + s) * h * slopes[k]
-            + (-2.0 * s3 + 3.0 * s2) * x_nodes[k + 1] + (s3 - s2) * h * slopes[k + 1])
+    x, d = nodes[2 * piece], nodes[2 * piece + 1]
+    return ((2.0 * s3 - 3.0 * s2 + 1.0) * x[k] + (s3 - 2.0 * s2 + s) * h * d[k]
+            + (-2.0 * s3 + 3.0 * s2) * x[k + 1] + (s3 - s2) * h * d[k + 1])
 
 
 @numba.njit(cache=True, parallel=True)
-def _hermite_quantile(p, x_nodes, slopes, p_lo, h, out):
-    """out = :func:`_hermite_at` at every p."""
+def _hermite_many(t, nodes, t0, h, cells, out):
+    """out = :func:`_hermite_at` of piece 0 at every t."""
+    for i in numba.prange(t.size):
+        out[i] = _hermite_at(t[i], nodes, 0, t0, h, cells)
+
+
+@numba.njit(cache=True, inline="always")
+def _gamma_quantile_at(p, nodes, grid):
+    """Unit-scale gamma quantile at probability p from the tables of :func:`_quantile_table`
+    (NaN where no accurate table reaches: the caller uses scipy there)."""
+    if p < grid[0]:
+        return _hermite_at(p ** grid[9], nodes, 1, grid[3], grid[4], grid[5])
+    if p > P_HI:
+        return _hermite_at(-math.log1p(-p), nodes, 2, grid[6], grid[7], grid[8])
+    return _hermite_at(p, nodes, 0, grid[0], grid[1], grid[2])
+
+
+@numba.njit(cache=True, parallel=True)
+def _gamma_quantiles(p, nodes, grid, out):
+    """out = :func:`_gamma_quantile_at` at every p."""
     for i in numba.prange(p.size):
-        out[i] = _hermite_at(p[i], x_nodes, slopes, p_lo, h)
+        out[i] = _gamma_quantile_at(p[i], nodes, grid)
 
 
 def heights_from_uniform(params: InterfaceParams, p):
     """Gamma heights r [m] (shape alpha+1, scale beta) from uniforms, SPEC §2 (inverse CDF)."""
     p = np.ascontiguousarray(p, dtype=float)
     shape = params.alpha + 1.0
-    table = _quantile_table(shape)
-    if table is None:
-        return special.gammaincinv(shape, p) * params.beta
     x = np.empty_like(p)
-    _hermite_quantile(p, table[0], table[1], P_LO, H_NODE, x)
+    _gamma_quantiles(p.ravel(), *_quantile_table(shape), x.ravel())
     tail = np.isnan(x)
     x[tail] = special.gammaincinv(shape, p[tail])
     return x * params.beta
@@ -303,16 +354,15 @@ def _gather(U, order, c0, c1, c2, c3):
 
 
 @numba.njit(cache=True, inline="always")
-def _asperity_at(p_r, p_R, p_u, p_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf,
-                 lo, hi, b, c, d):
+def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d):
     """(unit-scale gamma height, radius [m], u [rad], cos phi, sin phi) of the uniforms (p_r, p_R, p_u, p_phi),
     SPEC §2–§3 (Eq. 10).
 
-    A height outside the quantile table (everywhere when ``x_nodes`` is empty) is returned as
-    -p, its probability negated (sign bit set, also for p = 0), for scipy's inverse.
+    A height the quantile tables do not give is returned as -p, its probability negated (sign
+    bit set, also for p = 0), for scipy's inverse.
     """
     p = p_r * p_band
-    x = _hermite_at(p, x_nodes, slopes, p_lo, h) if x_nodes.size > 0 else np.nan
+    x = _gamma_quantile_at(p, nodes, grid)
     r = -p if math.isnan(x) else x
     R = _radius_at(p_R, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi) if radius else R_m
     x = p_u if b == 0.0 else _cos_u_at(p_u, b)
@@ -322,18 +372,17 @@ def _asperity_at(p_r, p_R, p_u, p_phi, p_band, x_nodes, slopes, p_lo, h, radius,
 
 
 @numba.njit(cache=True, parallel=True)
-def _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf,
-                  hi_cdf, lo, hi, b, c, d):
+def _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi,
+                  b, c, d):
     """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each."""
     for i in numba.prange(r.size):
         r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
-            r[i], R[i], u[i], cos_phi[i], p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf,
-            lo, hi, b, c, d)
+            r[i], R[i], u[i], cos_phi[i], p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
 
 
 @numba.njit(cache=True, parallel=True)
-def _sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes, p_lo, h, radius, R_m, R_sigma,
-                lo_cdf, hi_cdf, lo, hi, b, c, d):
+def _sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
+                lo, hi, b, c, d):
     """The scrambled Sobol' net of r.size = 2^m points (:func:`asperity_sim.sobol.net_directions`) through
     :func:`_asperity_at`, generated in increasing order of the height uniform: already sorted, no
     array of uniforms.  Blocks of points run in parallel, each from its first point computed directly."""
@@ -346,7 +395,7 @@ def _sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, x_nodes, slopes,
         for i in range(i0, i1):
             r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
                 float(x[0]) * scale, float(x[1]) * scale, float(x[2]) * scale, float(x[3]) * scale, p_band,
-                x_nodes, slopes, p_lo, h, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
+                nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
             net_next(W, i, x)
 
 
@@ -461,8 +510,7 @@ class Population:
         radius = params.R_sigma > 0.0
         R_const = _radius_constants(params) if radius else (params.R_m, 0.0, 0.0, 1.0, params.R_m, params.R_m)
         shape = params.alpha + 1.0
-        x_nodes, slopes = _quantile_table(shape) or (_EMPTY, _EMPTY)
-        constants = (p_band, x_nodes, slopes, P_LO, H_NODE, radius, *R_const, params.b, params.c, params.d)
+        constants = (p_band, *_quantile_table(shape), radius, *R_const, params.b, params.c, params.d)
         if sampler == "sobol" and n & (n - 1) == 0:
             _sample_net(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
         else:
@@ -470,7 +518,7 @@ class Population:
             _gather(U, _argsort_unit(U[:, 0]), r, R, u, cos_phi)
             del U
             _inverse_cdfs(r, R, u, cos_phi, sin_phi, *constants)
-        tail = np.signbit(r)  # outside the table (about 4 % of the heights): scipy's inverse
+        tail = np.signbit(r)  # where no table is accurate: scipy's inverse
         r[tail] = special.gammaincinv(shape, -r[tail])
         r *= params.beta
         _clip_running_max(r, r_band)

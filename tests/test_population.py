@@ -476,10 +476,14 @@ def test_n_reachable_with_frozen_angles(delta):
 
 @pytest.mark.parametrize("alpha", [-0.9, -0.5, 0.0, 3.82, 6.14, 50.0])
 def test_tabulated_height_quantile_matches_gammaincinv(alpha):
-    """Heights come from a checked Hermite table of the gamma quantile; scipy's inverse is the reference."""
+    """Heights come from checked Hermite tables of the gamma quantile (middle, lower and upper tail);
+    scipy's inverse is the reference, and the fallback where a table is not accurate."""
     from scipy import special
 
-    from asperity_sim.population import heights_from_uniform
+    from asperity_sim.population import _quantile_table, heights_from_uniform
+
+    if alpha > -0.9:  # all three pieces are accurate enough to be used, the tails included
+        assert np.all(_quantile_table(alpha + 1.0)[1][[2, 5, 8]] > 0)
 
     params = presets.R1.replace(alpha=alpha)
     p = np.concatenate([np.random.default_rng(3).random(200_000), [0.0, 0.02, 0.5, 0.98, np.nextafter(1.0, 0.0)]])
@@ -513,8 +517,7 @@ def test_sobol_population_generated_in_height_order_equals_the_sorted_points(par
         arrays = [np.ascontiguousarray(U[np.argsort(U[:, 0], kind="stable"), k]) for k in range(4)] + [np.empty(n)]
         r, R, u, cos_phi, sin_phi = arrays
         p_band = P.band_probability(params, r_max)
-        table = P._quantile_table(params.alpha + 1.0) or (P._EMPTY, P._EMPTY)
-        P._inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, *table, P.P_LO, P.H_NODE, True,
+        P._inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, *P._quantile_table(params.alpha + 1.0), True,
                         *P._radius_constants(params), params.b, params.c, params.d)
         tail = np.signbit(r)
         r[tail] = P.special.gammaincinv(params.alpha + 1.0, -r[tail])
