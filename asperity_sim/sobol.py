@@ -82,6 +82,18 @@ def _scramble(v, masks):
 
 
 @numba.njit(cache=True, inline="always")
+def _xor_columns(x, v, key):
+    """x[j] ^= v[j, b] for every set bit b of key."""
+    b = 0
+    while key:
+        if key & 1:
+            for j in range(DIM):
+                x[j] ^= v[j, b]
+        key >>= 1
+        b += 1
+
+
+@numba.njit(cache=True, inline="always")
 def _trailing_zeros(m):
     c = 0
     while not m & 1:
@@ -98,14 +110,7 @@ def _fill(v, shift, out):
     for b in numba.prange((n + BLOCK - 1) // BLOCK):
         lo, hi = b * BLOCK, min(n, (b + 1) * BLOCK)
         x = shift.copy()
-        g = lo ^ (lo >> 1)
-        k = 0
-        while g:
-            if g & 1:
-                for j in range(DIM):
-                    x[j] ^= v[j, k]
-            g >>= 1
-            k += 1
+        _xor_columns(x, v, lo ^ (lo >> 1))
         for i in range(lo, hi):
             for j in range(DIM):
                 out[i, j] = float(x[j]) * scale
@@ -141,29 +146,14 @@ def net_directions(m: int, seed) -> tuple[np.ndarray, np.ndarray, int]:
 @numba.njit(cache=True, inline="always")
 def net_point(W, shift, s, c, x):
     """x = the BITS-bit digits of the point in first-coordinate cell c (see :func:`net_directions`)."""
-    key = c ^ s
-    for j in range(DIM):
-        x[j] = shift[j]
-    b = 0
-    while key:
-        if key & 1:
-            for j in range(DIM):
-                x[j] ^= W[j, b]
-        key >>= 1
-        b += 1
+    x[:] = shift
+    _xor_columns(x, W, c ^ s)
 
 
 @numba.njit(cache=True, inline="always")
 def net_next(W, c, x):
     """Move x from the point in cell c to the point in cell c + 1 (the bits of c xor (c + 1))."""
-    flip = c ^ (c + 1)
-    b = 0
-    while flip:
-        if flip & 1:
-            for j in range(DIM):
-                x[j] ^= W[j, b]
-        flip >>= 1
-        b += 1
+    _xor_columns(x, W, c ^ (c + 1))
 
 
 def sobol_points(n: int, seed, scramble: bool = True) -> np.ndarray:
