@@ -391,6 +391,7 @@ class _Run:
                     pos.k_ref = (effective_stiffness(self.ev, free, _ramped(free, pos.start_stress, end))
                                  if free.any() else 0.0)
                     pos.started = True
+                ramped = _ramped(free, pos.start_stress, end)  # stage constant
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
                     s = pos.s
@@ -431,7 +432,7 @@ class _Run:
                         birth_angles(self.pop.r, self.pop.R, self.pop.u, self.pop.cos_phi, self.pop.sin_phi,
                                      ev.n_active, delta, params.r_o, params.k_e, self.theta_birth)
                     if free.any():
-                        pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, _ramped(free, pos.start_stress, end)))
+                        pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, ramped))
                     _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
                             residual=result.residual, cutbacks=cuts, **self.energy)
                     if result.residual > settings.rtol:  # accepted at the floating-point resolution of Delta
@@ -637,10 +638,11 @@ def _predict(ev, delta, target_delta, target_stress, free):
     if not any(mask):
         return guess
     fixed = ~free
-    if sum(mask) == 1:  # the common case without the SVD of cond
+    if sum(mask) == 1:  # the common case, on Python floats, without the SVD of cond
         k = mask.index(True)
-        rhs = target_stress[k] - ev.stress[k] - ev.tangent[k, fixed] @ (target_delta - delta)[fixed]
-        t_kk = ev.tangent[k, k]
+        row, change = ev.tangent[k].tolist(), (target_delta - delta).tolist()
+        rhs = float(target_stress[k] - ev.stress[k]) - sum(row[j] * change[j] for j in range(3) if not mask[j])
+        t_kk = row[k]
         if t_kk != 0.0 and math.isfinite(t_kk):
             step = rhs / t_kk
             if math.isfinite(step):

@@ -84,7 +84,7 @@ def _below_resolution(x, step):
     """True when every component of ``step`` [m] is within RESOLUTION_ULPS ulps of ``x`` [m] (lists of floats)."""
     if not all(map(math.isfinite, step)):
         return False
-    return all(abs(s) <= RESOLUTION_ULPS * np.spacing(max(abs(xi), abs(xi + s))) for xi, s in zip(x, step))
+    return all(abs(s) <= RESOLUTION_ULPS * math.ulp(max(abs(xi), abs(xi + s))) for xi, s in zip(x, step))
 
 
 def _max_abs(values):
@@ -180,7 +180,8 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
     lo = hi = None  # displacements where the residual is < 0 and > 0
     r_prev = None
     search = L / 64.0
-    x0 = float(x[k])
+    x0 = xk = float(x[k])  # x[k] as a Python float: the loop below is scalar arithmetic
+    target_k = float(target[k])
     expansions = 0
     best_search = math.inf
     best_r, best = math.inf, (0, ev)  # smallest |residual| seen, with (iterations, evaluation)
@@ -188,8 +189,9 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
     stalled = 0
     rate = 0.0
     for it in range(1, settings.max_iter + settings.max_expansions + 1):
-        scale = _stress_scale(ev, free, target, settings)
-        r = float((ev.stress[k] - target[k]) / scale)  # the one component of _scaled_residual
+        stress = ev.stress.tolist()
+        scale = max(abs(target_k), _max_abs(stress), settings.sigma_floor)  # _stress_scale, one component
+        r = (stress[k] - target_k) / scale  # the one component of _scaled_residual
         if not math.isfinite(r):
             return SolveResult(False, it - 1, r, rate, _NONFINITE.format(x), ev)
         if abs(r) <= settings.rtol:
@@ -200,12 +202,12 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
         if abs(r) < best_r:
             best_r, best = abs(r), (it - 1, ev)
         if r < 0.0:
-            lo = x[k]
+            lo = xk
         else:
-            hi = x[k]
-        T = ev.tangent[k, k] / scale
-        x_new = x[k] - r / T if T > 0.0 and math.isfinite(T) else math.nan
-        if abs(r) <= res_tol and math.isfinite(x_new) and _below_resolution([x[k]], [x_new - x[k]]):
+            hi = xk
+        T = ev.tangent.item(k, k) / scale
+        x_new = xk - r / T if T > 0.0 and math.isfinite(T) else math.nan
+        if abs(r) <= res_tol and math.isfinite(x_new) and _below_resolution([xk], [x_new - xk]):
             return SolveResult(True, it - 1, abs(r), rate, f"converged to the floating-point resolution of "
                                f"Delta_{k + 1} (residual {abs(r):.3g})", ev)
         if lo is not None and hi is not None:
@@ -217,16 +219,16 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
                     return SolveResult(True, best[0], best_r, rate,
                                        f"converged to the floating-point resolution of Delta_{k + 1} "
                                        f"(residual {best_r:.3g})", best[1])
-                ulps = (b - a) / max(np.spacing(max(abs(a), abs(b))), 5e-324)
+                ulps = (b - a) / math.ulp(max(abs(a), abs(b)))
                 return SolveResult(False, it, abs(r), rate,
                                    f"bracket on Delta_{k + 1} collapsed to {b - a:.3g} m ({ulps:.0f} ulps) at "
-                                   f"{x[k]:.6g} m with a scaled residual still {best_r:.3g} > {res_tol:.3g}: the "
+                                   f"{xk:.6g} m with a scaled residual still {best_r:.3g} > {res_tol:.3g}: the "
                                    f"stress is discontinuous there, or changes by more than that between neighbouring "
                                    f"floating-point values of Delta_{k + 1} (contact overlaps far below Delta)", ev)
         else:
             direction = 1.0 if r < 0.0 else -1.0  # the response is stiffening: sigma_k grows with Delta_k
-            if not math.isfinite(x_new) or abs(x_new - x[k]) > settings.max_step * L:
-                x_new = x[k] + direction * search
+            if not math.isfinite(x_new) or abs(x_new - xk) > settings.max_step * L:
+                x_new = xk + direction * search
                 search *= 2.0
                 expansions += 1
                 if abs(r) < best_search * (1.0 - 1e-9):
@@ -237,14 +239,14 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
                     return SolveResult(False, it, abs(r), rate,
                                        f"sigma_{k + 1} = {target[k]:.6g} Pa cannot be reached: along Delta_{k + 1} the "
                                        f"stress saturates at about {ev.stress[k]:.6g} Pa "
-                                       f"(Delta_{k + 1} = {x[k]:.6g} m)", ev, unreachable=True)
+                                       f"(Delta_{k + 1} = {xk:.6g} m)", ev, unreachable=True)
                 if abs(x_new - x0) > settings.max_search * L:
                     return SolveResult(False, it, abs(r), rate,
                                        f"sigma_{k + 1} = {target[k]:.6g} Pa cannot be reached within |Delta_{k + 1} "
                                        f"- {x0:.6g} m| <= max_search = {settings.max_search:g} length scales "
                                        f"({settings.max_search * L:.3g} m): the stress there is only "
                                        f"{ev.stress[k]:.6g} Pa", ev, unreachable=True)
-        x[k] = x_new
+        x[k] = xk = x_new
         ev = evaluate(x)
     r, _ = _scaled_residual(ev, free, target, settings)
     return SolveResult(False, settings.max_iter, float(abs(r[0])), rate,
