@@ -506,17 +506,19 @@ class Population:
         # 1/n), so the points are generated directly in that order (no sort, no array of uniforms).
         # Otherwise an O(n) counting sort; the sorted uniforms go straight into the output arrays
         # (allocated by numpy, which asks for huge pages) and the inverse CDFs replace them in place.
-        r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
         radius = params.R_sigma > 0.0
         R_const = _radius_constants(params) if radius else (params.R_m, 0.0, 0.0, 1.0, params.R_m, params.R_m)
         shape = params.alpha + 1.0
         constants = (p_band, *_quantile_table(shape), radius, *R_const, params.b, params.c, params.d)
         if sampler == "sobol" and n & (n - 1) == 0:
+            r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
             _sample_net(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
         else:
             U = unit_points(n, seed, sampler)
-            _gather(U, _argsort_unit(U[:, 0]), r, R, u, cos_phi)
-            del U
+            order = _argsort_unit(U[:, 0])  # before the outputs exist: the sort's work arrays are freed
+            r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
+            _gather(U, order, r, R, u, cos_phi)
+            del U, order
             _inverse_cdfs(r, R, u, cos_phi, sin_phi, *constants)
         tail = np.signbit(r)  # where no table is accurate: scipy's inverse
         r[tail] = special.gammaincinv(shape, -r[tail])
