@@ -219,35 +219,40 @@ N_IN = 5
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hertz, lam, mu):
-    """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
+def follow_angle(R_j, u_j, closure, k_e):
+    """(theta, sin theta, cos theta, 1/R, cos theta_m unclipped, clipped, 2u/pi) under policy follow, branch-free.
 
-    ``x`` = Delta_1 - r.  The same physics as :func:`paper_local` and :func:`accumulate` (with
-    J[0, 1] = J[0, 2] = 0: Hertz does not depend on the slip), written with selects instead of
-    branches, :func:`fsqrt` and the series :func:`acos_unit` and :func:`sin_cos_quarter` instead
-    of libm, so that LLVM vectorises the loop that calls it.  Both the stick and the slip form
-    are computed with safe arguments; an asperity out of contact gets zeros.
+    theta = (2/pi) u theta_m(c, R) (SPEC §3, Eq. 9) with the series :func:`acos_unit` and
+    :func:`sin_cos_quarter` instead of libm.
     """
-    shear_ph = cp * d2 + sp * d3
-    dt = -sp * d2 + cp * d3
     inv_R = 1.0 / R_j
     y = 1.0 - k_e * closure * inv_R
     yc = 0.0 if y < 0.0 else (1.0 if y > 1.0 else y)  # min/max would not vectorise
     scale = u_j * (2.0 / math.pi)
     th = scale * acos_unit(yc)
     st, ct = sin_cos_quarter(th)
-    dn = ct * x + st * shear_ph
-    ds = -st * x + ct * shear_ph
-    touch = dn > 0.0
-    # d theta / d Delta_1 as in asperity_theta (zero where theta_m is clipped)
+    return th, st, ct, inv_R, y, yc, scale
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def follow_slope(touch, y, yc, scale, k_e, inv_R, dc):
+    """d theta / d Delta_1 of a contact as in :func:`asperity_theta` (zero where theta_m is clipped)."""
     inner = touch & (y > 0.0) & (y < 1.0)
-    th1 = scale * k_e * inv_R / fsqrt((1.0 - yc) * (1.0 + yc)) * dc if inner else 0.0
+    return scale * k_e * inv_R / fsqrt((1.0 - yc) * (1.0 + yc)) * dc if inner else 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu):
+    """:func:`paper_local` with selects instead of branches: (f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, 1/dst).
+
+    Both the stick and the slip form are computed with safe arguments; out of contact
+    (``touch`` False) the forces and stiffnesses are zero.
+    """
     dn_safe = dn if touch else 1.0
     C = c_hertz * fsqrt(R_j)
     sq = fsqrt(dn_safe)
     f_n = C * dn_safe * sq
     k_n = 1.5 * C * sq
-    dst = fsqrt(ds * ds + dt * dt)
     xs = dst / (lam * mu * dn_safe)
     stick = xs < 1.0
     om = fsqrt(1.0 - xs if stick else 0.0)
@@ -256,12 +261,43 @@ def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hert
     k_sec = C * sq * q / lam if stick else mu * f_n * inv_dst
     dF_dst = k_n * om / lam if stick else 0.0
     dF_dn = mu * k_n * xs * (q - om) if stick else mu * k_n
-    es, et = ds * inv_dst, dt * inv_dst
     f_n = f_n if touch else 0.0
     k_n = k_n if touch else 0.0
     k_sec = k_sec if touch else 0.0
-    extra = dF_dst - k_sec if touch else 0.0
+    dF_dst = dF_dst if touch else 0.0
     dF_dn = dF_dn if touch else 0.0
+    return f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def store_counts(vals, i, touch, xs, stick, dst, th):
+    """Contact, full-slip and partial-slip flags and theta of a contact into column i of ``vals``."""
+    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
+    vals[V_NS * BLOCK + i] = 1.0 if touch & (xs >= 1.0) else 0.0
+    vals[V_NP * BLOCK + i] = 1.0 if touch & stick & (dst > 0.0) else 0.0
+    vals[V_TH * BLOCK + i] = th if touch else 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hertz, lam, mu):
+    """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
+
+    ``x`` = Delta_1 - r.  The same physics as :func:`paper_local` and :func:`accumulate` (with
+    J[0, 1] = J[0, 2] = 0: Hertz does not depend on the slip), written with selects instead of
+    branches, :func:`fsqrt` and series trigonometry instead of libm, so that LLVM vectorises
+    the loop that calls it.  An asperity out of contact gets zeros.
+    """
+    shear_ph = cp * d2 + sp * d3
+    dt = -sp * d2 + cp * d3
+    th, st, ct, inv_R, y, yc, scale = follow_angle(R_j, u_j, closure, k_e)
+    dn = ct * x + st * shear_ph
+    ds = -st * x + ct * shear_ph
+    touch = dn > 0.0
+    th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
+    dst = fsqrt(ds * ds + dt * dt)
+    f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst = paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu)
+    es, et = ds * inv_dst, dt * inv_dst
+    extra = dF_dst - k_sec
     f_s, f_t = k_sec * ds, k_sec * dt
     J10, J20 = dF_dn * es, dF_dn * et
     J11, J12, J22 = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
@@ -288,10 +324,50 @@ def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hert
     vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
     vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * A21
     vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * A22
-    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
-    vals[V_NS * BLOCK + i] = 1.0 if touch & (xs >= 1.0) else 0.0
-    vals[V_NP * BLOCK + i] = 1.0 if touch & stick & (dst > 0.0) else 0.0
-    vals[V_TH * BLOCK + i] = th if touch else 0.0
+    store_counts(vals, i, touch, xs, stick, dst, th)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def closure_values(vals, i, x, cp, sp, R_j, u_j, closure, dc, k_e, c_hertz, lam, mu):
+    """:func:`follow_values` at Delta_2 = Delta_3 = 0 (normal closure), the same bits with less work.
+
+    Without shear delta_t = 0 and delta_s = -sin(theta) x, so delta_st = |delta_s| (exactly
+    sqrt(delta_s²) in IEEE arithmetic), the shear force has no t component and the terms of
+    :func:`follow_values` that carry delta_t are exact zeros, left out here.
+    """
+    th, st, ct, inv_R, y, yc, scale = follow_angle(R_j, u_j, closure, k_e)
+    dn = ct * x
+    ds = -st * x
+    touch = dn > 0.0
+    th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
+    dst = -ds if ds < 0.0 else ds
+    f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst = paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu)
+    es = ds * inv_dst
+    extra = dF_dst - k_sec
+    f_s = k_sec * ds
+    J10 = dF_dn * es
+    J11 = k_sec + extra * es * es
+    n0, n1, n2 = ct, st * cp, st * sp
+    s0, s1, s2 = -st, ct * cp, ct * sp
+    t1, t2 = -sp, cp
+    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
+    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1
+    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2
+    k00, k10 = n0 + ds * th1, s0 - dn * th1
+    A00, A01, A02 = k_n * k00, k_n * n1, k_n * n2
+    A10 = J10 * k00 + J11 * k10
+    A11 = J10 * n1 + J11 * s1
+    A12 = J10 * n2 + J11 * s2
+    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
+    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
+    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
+    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + (f_n * s1 - f_s * n1) * th1
+    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * (k_sec * t1)
+    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * (k_sec * t2)
+    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + (f_n * s2 - f_s * n2) * th1
+    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * (k_sec * t1)
+    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * (k_sec * t2)
+    store_counts(vals, i, touch, xs, stick, dst, th)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -322,8 +398,8 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
     branch), a scalar pass lists their positions and their inputs are copied, contiguous, into
     ``inp`` (a single scalar loop that tested, stored and compacted at once cost about 1.7 times
     more per asperity: in sheared states most asperities of a block are dropped here);
-    :func:`follow_values` fills ``vals`` in a loop that LLVM vectorises; the columns are
-    summed in order.  No fastmath anywhere, so vector and scalar code give the same
+    :func:`follow_values` (:func:`closure_values` without shear) fills ``vals`` in a loop that
+    LLVM vectorises; the columns are summed in order.  No fastmath anywhere, so vector and scalar code give the same
     bits and the sums do not depend on how LLVM vectorised: the result is the same in every
     process, compiled or loaded from the cache.
     """
@@ -333,6 +409,7 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
     kept = np.empty(BLOCK, dtype=np.int64)
     at = np.empty(BLOCK, dtype=np.int64)
     c_hertz = (4.0 / 3.0) * E_star
+    zero_shear = d2 == 0.0 and d3 == 0.0  # normal closure: closure_values, the same bits with less work
     F0 = F1 = F2 = P00 = P11 = P22 = P01 = P02 = P12 = 0.0
     T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
     n_c = n_s = n_p = th_sum = 0.0
@@ -340,9 +417,14 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
         b1 = min(hi, b0 + BLOCK)
         if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
             m = b1 - b0
-            for i in range(m):
-                follow_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
-                              d2, d3, closure, dc, k_e, c_hertz, lam, mu)
+            if zero_shear:
+                for i in range(m):
+                    closure_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i],
+                                   u[b0 + i], closure, dc, k_e, c_hertz, lam, mu)
+            else:
+                for i in range(m):
+                    follow_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
+                                  d2, d3, closure, dc, k_e, c_hertz, lam, mu)
         else:
             for j in range(b0, b1):  # vectorised: which asperities may touch
                 cp, sp = cos_phi[j], sin_phi[j]
@@ -360,9 +442,15 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
                 inp[X_SP * BLOCK + i] = sin_phi[j]
                 inp[X_R * BLOCK + i] = R[j]
                 inp[X_U * BLOCK + i] = u[j]
-            for i in range(m):
-                follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
+            if zero_shear:
+                for i in range(m):
+                    closure_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                                   inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], closure, dc, k_e, c_hertz, lam, mu)
+            else:
+                for i in range(m):
+                    follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                                  inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz,
+                                  lam, mu)
         for i in range(m):
             g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
             F0 += g0

@@ -20,12 +20,12 @@ HALF_PI = 0.5 * math.pi
 # Taylor coefficients of the libm-free trigonometry below (for kernels that LLVM vectorises:
 # a loop with a libm call does not vectorise).  Truncation errors: sin, cos on [0, pi/2] below
 # 1e-18 (next terms (pi/2)^23/23!, (pi/2)^24/24!); asin on [0, 1/2] below 1e-18 (next term
-# about 0.25^26 / (sqrt(26 pi) 53)).  Each is zero-padded to a multiple of 4 terms for
-# :func:`poly4`.  No fastmath: vector and scalar code give the same bits.
+# about 0.25^26 / (sqrt(26 pi) 53)).  Each is zero-padded to a multiple of 16 terms for
+# :func:`estrin16`.  No fastmath: vector and scalar code give the same bits.
 
 
 def _padded(c):
-    return np.concatenate([c, np.zeros(-len(c) % 4)])
+    return np.concatenate([c, np.zeros(-len(c) % 16)])
 
 
 SIN_SERIES = _padded([(-1) ** k / math.factorial(2 * k + 1) for k in range(11)])
@@ -52,28 +52,32 @@ def fsqrt(typingctx, x):
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def poly4(coef, z):
-    """sum_k coef[k] z^k (coef.size a multiple of 4) as four interleaved Horner chains in z^4.
+def estrin16(coef, k, z, z2, z4, z8):
+    """sum_i coef[k + i] z^i over i < 16 by Estrin's scheme (z2, z4, z8 the powers of z).
 
-    One Horner chain is a serial multiply-add chain; four independent ones cut the latency
-    of the vectorised kernel by about four.  LLVM unrolls the loop for a constant ``coef``.
+    Four levels of independent multiply-adds instead of a serial Horner chain: the vectorised
+    kernel is bound by the latency of its longest dependency chain, which this shortens.
     """
-    z2 = z * z
-    z4 = z2 * z2
-    q0 = q1 = q2 = q3 = 0.0
-    for i in range(coef.size - 4, -1, -4):
-        q0 = q0 * z4 + coef[i]
-        q1 = q1 * z4 + coef[i + 1]
-        q2 = q2 * z4 + coef[i + 2]
-        q3 = q3 * z4 + coef[i + 3]
-    return (q0 + z * q1) + z2 * (q2 + z * q3)
+    a0 = coef[k] + coef[k + 1] * z
+    a1 = coef[k + 2] + coef[k + 3] * z
+    a2 = coef[k + 4] + coef[k + 5] * z
+    a3 = coef[k + 6] + coef[k + 7] * z
+    a4 = coef[k + 8] + coef[k + 9] * z
+    a5 = coef[k + 10] + coef[k + 11] * z
+    a6 = coef[k + 12] + coef[k + 13] * z
+    a7 = coef[k + 14] + coef[k + 15] * z
+    b0, b1, b2, b3 = a0 + a1 * z2, a2 + a3 * z2, a4 + a5 * z2, a6 + a7 * z2
+    return (b0 + b1 * z4) + (b2 + b3 * z4) * z8
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def sin_cos_quarter(x):
     """(sin x, cos x) for x in [0, pi/2] without a libm call; error a few 1e-16."""
     z = x * x
-    return x * poly4(SIN_SERIES, z), poly4(COS_SERIES, z)
+    z2 = z * z
+    z4 = z2 * z2
+    z8 = z4 * z4
+    return x * estrin16(SIN_SERIES, 0, z, z2, z4, z8), estrin16(COS_SERIES, 0, z, z2, z4, z8)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -85,7 +89,11 @@ def acos_unit(y):
     """
     low = y <= 0.5
     z = y if low else fsqrt(0.5 * (1.0 - y))
-    a = z * poly4(ASIN_SERIES, z * z)
+    w = z * z
+    w2 = w * w
+    w4 = w2 * w2
+    w8 = w4 * w4
+    a = z * (estrin16(ASIN_SERIES, 0, w, w2, w4, w8) + (w8 * w8) * estrin16(ASIN_SERIES, 16, w, w2, w4, w8))
     return HALF_PI - a if low else 2.0 * a
 
 
