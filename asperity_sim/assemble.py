@@ -398,10 +398,10 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
     branch), a scalar pass lists their positions and their inputs are copied, contiguous, into
     ``inp`` (a single scalar loop that tested, stored and compacted at once cost about 1.7 times
     more per asperity: in sheared states most asperities of a block are dropped here);
-    :func:`follow_values` (:func:`closure_values` without shear) fills ``vals`` in a loop that
-    LLVM vectorises; the columns are summed in order.  No fastmath anywhere, so vector and scalar code give the same
-    bits and the sums do not depend on how LLVM vectorised: the result is the same in every
-    process, compiled or loaded from the cache.
+    :func:`follow_values` (:func:`closure_values` for whole blocks without shear) fills ``vals``
+    in a loop that LLVM vectorises; the columns are summed in order.  No fastmath anywhere, so
+    vector and scalar code give the same bits and the sums do not depend on how LLVM
+    vectorised: the result is the same in every process, compiled or loaded from the cache.
     """
     lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
     vals = np.empty(N_VAL * BLOCK)
@@ -442,15 +442,9 @@ def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, clos
                 inp[X_SP * BLOCK + i] = sin_phi[j]
                 inp[X_R * BLOCK + i] = R[j]
                 inp[X_U * BLOCK + i] = u[j]
-            if zero_shear:
-                for i in range(m):
-                    closure_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                                   inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], closure, dc, k_e, c_hertz, lam, mu)
-            else:
-                for i in range(m):
-                    follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                                  inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz,
-                                  lam, mu)
+            for i in range(m):  # without shear only the block at the closure comes here: no closure_values copy
+                follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
         for i in range(m):
             g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
             F0 += g0
