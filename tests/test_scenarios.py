@@ -75,3 +75,19 @@ def test_convergence_study_quick_run(tmp_path, capsys):
     table = (tmp_path / "convergence.md").read_text()
     assert "| fig13_R1 | rqmc |" in table and "Speed-up" in table
     assert (tmp_path / "convergence.png").stat().st_size > 0
+
+
+def test_convergence_timing_repeats_only_short_runs():
+    """A short run is timed REPEATS times and its median kept; a long one once; the result is the first run's."""
+    module = importlib.import_module("convergence")
+    times = iter([0.05, 0.30, 0.01, 0.50])
+    calls = []
+
+    def run():
+        calls.append(1)
+        return len(calls), next(times)
+
+    result, seconds = module.timed(run)
+    assert (result, seconds, len(calls)) == (1, float(np.median([0.05, 0.30, 0.01])), module.REPEATS)
+    result, seconds = module.timed(run)
+    assert (result, seconds, len(calls)) == (4, 0.50, module.REPEATS + 1)
