@@ -31,6 +31,8 @@ def _padded(c):
 SIN_SERIES = _padded([(-1) ** k / math.factorial(2 * k + 1) for k in range(11)])
 COS_SERIES = _padded([(-1) ** k / math.factorial(2 * k) for k in range(12)])
 ASIN_SERIES = _padded([math.factorial(2 * k) / (4 ** k * math.factorial(k) ** 2 * (2 * k + 1)) for k in range(26)])
+if (SIN_SERIES.size, COS_SERIES.size, ASIN_SERIES.size) != (16, 16, 32):  # the estrin16 calls below assume these
+    raise ImportError("series lengths changed: update sin_cos_quarter and acos_unit, which evaluate 16, 16, 32 terms")
 
 
 @numba.extending.intrinsic

@@ -164,7 +164,6 @@ def _radius_at(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi):
 # below 1, whose quantile is too steep near p = 0) or does not reach, scipy's gammaincinv
 # (about 0.5 s per million) is used.
 P_LO, P_HI, N_NODES = 0.02, 0.98, 2**15
-H_NODE = (P_HI - P_LO) / N_NODES  # node spacing in p
 N_TAIL, T_MAX = 2**13, 40.0
 TABLE_RTOL = 1e-13
 
