@@ -17,8 +17,13 @@ Step 1 (quadrature of Eq. 23, SPEC §6):
     orientation density xi(u, phi) sin u of Eq. 10, corrected) multiplied into the weights;
     no weight is renormalised (as in the paper).
 Steps 2–3: the force of every grid point (an "asperity") from Eqs. (12)–(21), summed.
-Step 4: tangent by a forward finite difference with step dDelta = 0.01 r90 (one extra
-    evaluation per stress-controlled component and iteration).
+Step 4: the tangent T_ik = d sigma_i / d Delta_k (Eq. 27) by forward differences with step
+    dDelta = 0.01 r90, in all three components, at every iterate (three extra stress
+    evaluations; the Dataset records it at each converged increment, as the Monte Carlo run
+    records its analytic tangent).  ``full_tangent=False`` is a lighter variant that is not
+    the paper's: only the columns of the stress-controlled components, only while the
+    residual is above the tolerance, nothing recorded (a displacement-controlled increment
+    then costs one evaluation instead of four).
 Step 5: Newton update dDelta_f = T_ff^-1 (sigma_target_f - sigma_f) until
     |residual| <= rtol * max(|sigma_target|, |sigma|).
 
@@ -271,24 +276,40 @@ def stress(params: InterfaceParams, delta, resolution: GridResolution = PAPER, r
     return _Evaluator(params, rule)(d)
 
 
-def _newton(F, x, sig, free, target, h, rtol, max_iter):
+def _fd_tangent(F, x, sig, h, columns):
+    """Step 4: the columns k of T_ik = d sigma_i / d Delta_k [Pa/m] (Eq. 27) by forward differences
+    of step h [m] from (x, sig = F(x)); the other columns are NaN."""
+    T = np.full((3, 3), np.nan)
+    for k in columns:
+        xp = x.copy()
+        xp[k] += h
+        T[:, k] = (F(xp) - sig) / h
+    return T
+
+
+def _newton(F, x, sig, free, target, h, rtol, max_iter, full_tangent):
     """Steps 4–5: Newton with a forward-difference tangent (step h [m]) on the free components.
 
+    ``full_tangent``: Step 4 as published, the whole tangent at every iterate, the converged
+    one included (the paper's Step 4 comes before the convergence check of Step 5);
+    otherwise only the free columns, only while iterating.
     Safeguards (not in the paper, which does not say how it started or protected Newton):
     with one free component, every iterate that brackets the root is kept and a Newton step
     leaving the bracket is replaced by bisection; a zero tangent (no contact yet) steps
     towards the target by h, doubling.  With several free components the step is halved
-    until the residual falls.  Returns (Delta, sigma, iterations, scaled residual).
+    until the residual falls.  Returns (Delta, sigma, iterations, scaled residual, tangent
+    at Delta or None).
     """
     idx = np.flatnonzero(free)
     lo = hi = None
     search = h
     for it in range(max_iter + 1):
+        T_full = _fd_tangent(F, x, sig, h, range(3)) if full_tangent else None
         scale = max(np.max(np.abs(target[idx])), np.max(np.abs(sig)), 1e-9)
         res = target[idx] - sig[idx]
         norm = float(np.max(np.abs(res)) / scale)
         if norm <= rtol:
-            return x, sig, it, norm
+            return x, sig, it, norm, T_full
         if it == max_iter:
             break
         if idx.size == 1:  # bracket: the stress grows with the displacement along a stress control
@@ -296,11 +317,7 @@ def _newton(F, x, sig, free, target, h, rtol, max_iter):
                 lo = x[idx[0]]
             else:
                 hi = x[idx[0]]
-        T = np.empty((idx.size, idx.size))
-        for col, k in enumerate(idx):
-            xp = x.copy()
-            xp[k] += h
-            T[:, col] = (F(xp)[idx] - sig[idx]) / h
+        T = (T_full if full_tangent else _fd_tangent(F, x, sig, h, idx))[np.ix_(idx, idx)]
         step = np.full(idx.size, np.nan)
         if np.all(np.isfinite(T)) and abs(np.linalg.det(T)) > 0.0:
             step = np.linalg.solve(T, res)
@@ -334,18 +351,22 @@ def _newton(F, x, sig, free, target, h, rtol, max_iter):
 
 
 def simulate_grid(params: InterfaceParams, path: LoadPath, resolution: GridResolution = PAPER, *,
-                  rtol: float = 1e-9, max_iter: int = 60) -> xr.Dataset:
+                  rtol: float = 1e-9, max_iter: int = 60, full_tangent: bool = True) -> xr.Dataset:
     """Run ``path`` with the paper's grid method (Steps 1–5); returns a Dataset like :func:`simulate`.
 
     Every stage is split into its nominal increments (no cut-backs); in each increment the
     displacement-controlled components are prescribed and the stress-controlled ones are
     solved by Newton with the forward-difference tangent of Step 4, starting from the last
     converged displacement (Step 2).  Variables: ``displacement`` (step, axis) [m],
-    ``stress`` (step, axis) [Pa], ``iterations`` (step), ``stage`` (step), ``control`` (step, axis).
+    ``stress`` (step, axis) [Pa], ``tangent`` (step, axis, axis_k) [Pa/m] (only with
+    ``full_tangent``, the paper's Step 4; see the module docstring for the variant),
+    ``iterations`` (step), ``stage`` (step), ``control`` (step, axis).
     Attributes: resolution, grid points, points visited, stress evaluations and wall time.
     """
     if not isinstance(path, LoadPath):
         raise ValueError(f"path = {path!r} is not a LoadPath")
+    if not isinstance(full_tangent, bool):
+        raise ValueError(f"full_tangent = {full_tangent!r} must be True (Step 4 as published) or False")
     t0 = time.perf_counter()
     rule = grid_rule(params, resolution)
     F = _Evaluator(params, rule)
@@ -353,7 +374,9 @@ def simulate_grid(params: InterfaceParams, path: LoadPath, resolution: GridResol
     x = np.zeros(3)
     x_prev = x.copy()
     sig = F(x)
+    T = _fd_tangent(F, x, sig, h, range(3)) if full_tangent else None
     disp, stress_, iters, stages, control = [x.copy()], [sig.copy()], [0], [0], [np.zeros(3, bool)]
+    tangents = [T]
     for i_stage, stage in enumerate(path.stages, 1):
         free = stage.stress_controlled
         start_x, start_s = x.copy(), sig.copy()
@@ -368,27 +391,38 @@ def simulate_grid(params: InterfaceParams, path: LoadPath, resolution: GridResol
             sig = F(x)
             it = 0
             if free.any():
-                x, sig, it, _ = _newton(F, x, sig, free, np.where(free, target_s, 0.0), h, rtol, max_iter)
+                x, sig, it, _, T = _newton(F, x, sig, free, np.where(free, target_s, 0.0), h, rtol, max_iter,
+                                           full_tangent)
+            elif full_tangent:  # Steps 2-4 once: nothing to solve, the tangent is still evaluated
+                T = _fd_tangent(F, x, sig, h, range(3))
             disp.append(x.copy())
             stress_.append(sig.copy())
+            tangents.append(T)
             iters.append(it)
             stages.append(i_stage)
             control.append(free.copy())
     wall = time.perf_counter() - t0
     axis = np.arange(1, 4)
-    ds = xr.Dataset(
-        {
-            "displacement": (("step", "axis"), np.array(disp), {"units": "m", "long_name": "interface displacement"}),
-            "stress": (("step", "axis"), np.array(stress_),
-                       {"units": "Pa", "long_name": "interface stress (grid method)"}),
-            "iterations": ("step", np.array(iters), {"units": "1", "long_name": "Newton iterations (Steps 4-5)"}),
-            "stage": ("step", np.array(stages), {"units": "1", "long_name": "load path stage"}),
-            "control": (("step", "axis"), np.array(control).astype("i1"),
-                        {"units": "1", "long_name": "1 where the stress is prescribed"}),
-        },
-        coords={"step": np.arange(len(disp)), "axis": axis},
-        attrs={"method": "paper grid (Steps 1-5)", "resolution": resolution.label(),
+    data = {
+        "displacement": (("step", "axis"), np.array(disp), {"units": "m", "long_name": "interface displacement"}),
+        "stress": (("step", "axis"), np.array(stress_),
+                   {"units": "Pa", "long_name": "interface stress (grid method)"}),
+        "iterations": ("step", np.array(iters), {"units": "1", "long_name": "Newton iterations (Steps 4-5)"}),
+        "stage": ("step", np.array(stages), {"units": "1", "long_name": "load path stage"}),
+        "control": (("step", "axis"), np.array(control).astype("i1"),
+                    {"units": "1", "long_name": "1 where the stress is prescribed"}),
+    }
+    coords = {"step": np.arange(len(disp)), "axis": axis}
+    if full_tangent:
+        data["tangent"] = (("step", "axis", "axis_k"), np.array(tangents),
+                           {"units": "Pa m-1", "long_name": "tangent d sigma_axis / d Delta_axis_k by forward "
+                                                           f"differences of step {h:.4g} m (Step 4, Eq. 27)"})
+        coords["axis_k"] = axis
+    step4 = ("all three components at every iterate (as published)" if full_tangent else
+             "stress-controlled components only, while iterating (lighter than the paper's Step 4)")
+    return xr.Dataset(
+        data, coords=coords,
+        attrs={"method": "paper grid (Steps 1-5)", "resolution": resolution.label(), "step4_tangent": step4,
                "grid_points": rule.n_points, "points_visited": F.points, "stress_evaluations": F.calls,
                "wall_time_s": wall, "path": path.name},
     )
-    return ds

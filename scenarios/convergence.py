@@ -36,10 +36,17 @@ Methods (all in one run, same machine, same number of threads):
                the bound afterwards and redone with a wider band if it left it (detect and
                correct); pilot and checks are included in the wall time
   pruned_mc    the same band with plain Monte Carlo (shows the variance gain of the band alone)
-  grid         the paper's grid method (asperity_sim.gridmethod: Simpson, Delta_r = 0.01 r90 s,
-               Delta_R = 0.01 R_sigma s, (20/s) x (40/s) in theta, phi, forward-difference tangent
-               with step 0.01 r90, Newton), s = 1 is the published resolution; deterministic, one
-               replica; its "n" is the number of grid points of one stress evaluation.
+  grid         the paper's grid method, Steps 1-5 as published (asperity_sim.gridmethod: Simpson,
+               Delta_r = 0.01 r90 s, Delta_R = 0.01 R_sigma s, (20/s) x (40/s) in theta, phi, the
+               tangent of Eq. 27 by forward differences with step 0.01 r90 at every iterate, Newton),
+               s = 1 is the published resolution; deterministic, one replica; its "n" is the number
+               of grid points of one stress evaluation.  Like the Monte Carlo runs it records a
+               tangent at every increment.
+  grid_forces  the same grid with a lighter Step 4 that is not the paper's (full_tangent=False):
+               difference columns only for the stress-controlled components and only while
+               iterating, no tangent recorded.  Identical stresses; on the displacement-controlled
+               Fig. 11 path one stress evaluation per increment instead of four.  Speed-ups are
+               reported against both.
 Wall time: sampling + simulate (or the whole grid run), warm numba cache (every kernel is
 run once before timing), 2 threads; the reference quadrature is not timed.  A run shorter than
 0.2 s, of any method, is run three times and its median time kept (the runs are deterministic):
@@ -253,8 +260,9 @@ def run_pruned(scene, n, seed, sampler):
     return ds, time.perf_counter() - t0
 
 
-def run_grid(scene, s):
-    ds = gridmethod.simulate_grid(scene.params, scene.path, gridmethod.GridResolution.scaled(s), rtol=SETTINGS.rtol)
+def run_grid(scene, s, full_tangent=True):
+    ds = gridmethod.simulate_grid(scene.params, scene.path, gridmethod.GridResolution.scaled(s), rtol=SETTINGS.rtol,
+                                  full_tangent=full_tangent)
     return ds, ds.attrs["wall_time_s"]
 
 
@@ -273,6 +281,7 @@ METHODS = {
     "pruned": lambda sc, n, seed: run_pruned(sc, n, seed, "sobol"),
     "pruned_mc": lambda sc, n, seed: run_pruned(sc, n, seed, "random"),
 }
+GRIDS = {"grid": True, "grid_forces": False}  # grid method -> full_tangent (True: Step 4 as published)
 
 
 def replicas_for(n, replicas):
@@ -344,7 +353,7 @@ def fmt_t(v):
 
 
 def summary_table(res, sc_names, methods):
-    others = [m for m in methods if m != "grid"]
+    others = [m for m in methods if m not in GRIDS]
 
     def curve(m, sc):
         """(mean wall time, RMS curve error) over n of method m on scene sc."""
@@ -358,13 +367,25 @@ def summary_table(res, sc_names, methods):
             t, e = curve(m, sc)
             lines.append(f"| {sc} | {m} | {fmt_e(error_at(t, e, 1.0))} | {fmt_e(error_at(t, e, 10.0))} | "
                          f"{fmt_t(time_to(t, e, 1e-2))} | {fmt_t(time_to(t, e, 1e-3))} |")
-    speed = ["", "Speed-up against the paper's grid method at equal error (time of the grid / time of the "
+    out = lines
+    for grid in (g for g in GRIDS if g in methods):
+        out += speedup_tables(curve, res, sc_names, others, grid)
+    return "\n".join(out)
+
+
+BASELINES = {"grid": "the paper's grid method (Steps 1-5 as published, tangent at every increment)",
+             "grid_forces": "the grid with the lighter Step 4 (grid_forces: no tangent unless iterating)"}
+
+
+def speedup_tables(curve, res, sc_names, others, grid):
+    """Speed-ups of the methods ``others`` against the grid method ``grid``, at fixed errors and at its runs."""
+    speed = ["", f"Speed-up against {BASELINES[grid]} at equal error (time of the grid / time of the "
              "method, both interpolated on the error-time frontier of the curve error; — where a method "
              "does not reach the error):", "",
-             "| scene | error | grid time | " + " | ".join(others) + " |",
+             f"| scene | error | {grid} time | " + " | ".join(others) + " |",
              "|---|---|---|" + "---|" * len(others)]
     for sc in sc_names:
-        tg, eg = curve("grid", sc)
+        tg, eg = curve(grid, sc)
         for e_star in (1e-2, 1e-3, 1e-4):
             t_grid = time_to(tg, eg, e_star)
             row = [f"| {sc} | {e_star:.0e} | {fmt_t(t_grid)} |"]
@@ -373,12 +394,12 @@ def summary_table(res, sc_names, methods):
                 ratio = t_grid / tm if math.isfinite(t_grid) and math.isfinite(tm) else math.nan
                 row.append(fmt_ratio(ratio))
             speed.append("".join(row))
-    own = ["", "Speed-up at the error of each grid run (its resolution s relative to the paper's, s = 1 "
+    own = ["", f"Speed-up at the error of each {grid} run (its resolution s relative to the paper's, s = 1 "
            "published; time of that grid run / time the method needs for the same curve error):", "",
-           "| scene | grid s | grid error | grid time | " + " | ".join(others) + " |",
+           f"| scene | grid s | grid error | {grid} time | " + " | ".join(others) + " |",
            "|---|---|---|---|" + "---|" * len(others)]
     for sc in sc_names:
-        tg, eg = curve("grid", sc)
+        tg, eg = curve(grid, sc)
         sg = res["grid_scale"].sel({"scene": sc}).values
         for i in np.flatnonzero(np.isfinite(tg) & np.isfinite(eg)):
             row = [f"| {sc} | {sg[i]:g} | {eg[i]:.1e} | {fmt_t(tg[i])} |"]
@@ -387,7 +408,7 @@ def summary_table(res, sc_names, methods):
                 ratio = tg[i] / tm if math.isfinite(tm) else math.nan
                 row.append(fmt_ratio(ratio))
             own.append("".join(row))
-    return "\n".join(lines + speed + own)
+    return speed + own
 
 
 def plot(res, sc_names, methods, out):
@@ -399,7 +420,7 @@ def plot(res, sc_names, methods, out):
     ncol = min(2, len(sc_names))
     nrow = (len(sc_names) + ncol - 1) // ncol
     fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.0 * nrow), squeeze=False)
-    style = {"mc": "o-", "rqmc": "s-", "pruned": "^-", "pruned_mc": "v--", "grid": "D:"}
+    style = {"mc": "o-", "rqmc": "s-", "pruned": "^-", "pruned_mc": "v--", "grid": "D:", "grid_forces": "d:"}
     for ax in axes.flat[len(sc_names):]:
         ax.set_visible(False)
     for ax, sc in zip(axes.flat, sc_names):
@@ -431,15 +452,15 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="tiny smoke run (small n, coarse grids, short paths)")
     ap.add_argument("--n-max", type=int, default=2**22, help="largest sample size (default 2^22)")
     ap.add_argument("--replicas", type=int, default=4, help="replicas (seeds) per sample size (default 4)")
-    ap.add_argument("--methods", default="mc,rqmc,pruned,pruned_mc,grid",
-                    help="comma-separated subset of mc, rqmc, pruned, pruned_mc, grid")
+    ap.add_argument("--methods", default="mc,rqmc,pruned,pruned_mc,grid,grid_forces",
+                    help="comma-separated subset of mc, rqmc, pruned, pruned_mc, grid, grid_forces")
     ap.add_argument("--scenes", default="fig13_R1,fig13_S1,fig11_R1,closure_R1")
     ap.add_argument("--outdir", type=Path, default=OUTPUTS)
     args = ap.parse_args(argv)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
-        if m not in METHODS and m != "grid":
-            ap.error(f"--methods: {m!r} is not known (valid: {', '.join(list(METHODS) + ['grid'])})")
+        if m not in METHODS and m not in GRIDS:
+            ap.error(f"--methods: {m!r} is not known (valid: {', '.join(list(METHODS) + list(GRIDS))})")
     all_scenes = scenes(args.quick)
     sc_names = [s.strip() for s in args.scenes.split(",") if s.strip()]
     for s in sc_names:
@@ -459,7 +480,7 @@ def main(argv=None):
 
     # grid sizes join the n axis (number of grid points of one stress evaluation)
     grid_rows = {}
-    if "grid" in methods:
+    if any(m in GRIDS for m in methods):
         for name in sc_names:
             sc = all_scenes[name]
             for s in sc.grid_scales:
@@ -495,13 +516,13 @@ def main(argv=None):
     for im, m in enumerate(methods):
         for name in sc_names:
             sc = all_scenes[name]
-            if m == "grid":
+            if m in GRIDS:
                 for s in sc.grid_scales:
                     i_n = n_axis.index(grid_rows[(name, s)])
-                    ds, seconds = timed(lambda: run_grid(sc, s))
+                    ds, seconds = timed(lambda: run_grid(sc, s, GRIDS[m]))
                     c = record(im, i_n, 0, name, ds, seconds)
                     grid_scale[i_n, sc_names.index(name)] = s
-                    print(f"{m:9s} {name:10s} s = {s:<4g} ({ds.attrs['grid_points']:.3g} points) "
+                    print(f"{m:11s} {name:10s} s = {s:<4g} ({ds.attrs['grid_points']:.3g} points) "
                           f"{seconds:8.2f} s  curve error {c:.2e}", flush=True)
                 continue
             for n in ns:
@@ -511,7 +532,7 @@ def main(argv=None):
                     ds, seconds = timed(lambda: METHODS[m](sc, n, 1000 * rep + 17))
                     cs.append(record(im, i_n, rep, name, ds, seconds))
                     ts.append(seconds)
-                print(f"{m:9s} {name:10s} n = {n:<8d} {np.mean(ts):8.2f} s  curve error (RMS) "
+                print(f"{m:11s} {name:10s} n = {n:<8d} {np.mean(ts):8.2f} s  curve error (RMS) "
                       f"{math.sqrt(np.mean(np.square(cs))):.2e}", flush=True)
     load_end = load_average()
     total = time.perf_counter() - t_start
@@ -556,7 +577,7 @@ def main(argv=None):
     )
     res.to_netcdf(args.outdir / "convergence.nc")
     plot(res, sc_names, methods, args.outdir / "convergence.png")
-    table = summary_table(res, sc_names, methods) if "grid" in methods else ""
+    table = summary_table(res, sc_names, methods) if any(m in GRIDS for m in methods) else ""
     cpu = subprocess.run(["nproc"], capture_output=True, text=True).stdout.strip()
     header = (f"Study run on {cpu} cores, {numba.get_num_threads()} numba threads, load average "
               f"{load_start[0]:.2f} at the start and {load_end[0]:.2f} at the end, total {total / 60:.1f} min. "

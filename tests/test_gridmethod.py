@@ -1,5 +1,6 @@
 """The paper's grid method (Steps 1–5) against the quadrature reference, and its convergence."""
 
+import dataclasses
 import math
 
 import numba
@@ -100,3 +101,51 @@ def test_newton_path_under_stress_control():
     assert abs(ref[0] / 500e6 - 1) < 1e-2
     assert abs(sig[-1, 1] / ref[1] - 1) < 1e-2
     assert ds.attrs["stress_evaluations"] > ds.sizes["step"]
+
+
+def test_step4_tangent_is_the_forward_difference_of_the_grid_stress():
+    """Step 4 as published: at every recorded increment T[:, k] = (sigma(Delta + h e_k) - sigma(Delta)) / h,
+    recomputed here from gm.stress; four stress evaluations per displacement-controlled increment."""
+    p = presets.R1
+    res = gm.GridResolution.scaled(4.0)
+    rule = gm.grid_rule(p, res)
+    path = paths.three_step(15 * um, 2)
+    ds = gm.simulate_grid(p, path, res)
+    h = res.fd_step * rule.r90
+    assert ds["tangent"].attrs["units"] == "Pa m-1"
+    for step in (2, 4, 6):
+        d = ds.displacement.values[step]
+        sig = gm.stress(p, d, rule=rule)
+        for k in range(3):
+            dk = d.copy()
+            dk[k] += h
+            expected = (gm.stress(p, dk, rule=rule) - sig) / h
+            np.testing.assert_allclose(ds.tangent.values[step, :, k], expected, rtol=1e-12, atol=1e-3)
+    assert ds.attrs["stress_evaluations"] == 4 * ds.sizes["step"]
+    # the normal stiffness of the grid against the quadrature's at the end of step 1 (the forward
+    # difference is first order in h: its error must shrink with the step)
+    d = ds.displacement.values[2]
+    ref = reference.tangent(p, d)[0, 0]
+    coarse = abs(ds.tangent.values[2, 0, 0] / ref - 1)
+    finer = gm.simulate_grid(p, path, dataclasses.replace(res, fd_step=res.fd_step / 4))
+    assert abs(finer.tangent.values[2, 0, 0] / ref - 1) < coarse
+
+
+def test_lighter_step4_gives_the_same_stresses_with_fewer_evaluations():
+    """full_tangent=False: identical iterates and stresses, no tangent, one evaluation per
+    displacement-controlled increment; a stress-controlled path still iterates."""
+    p = presets.S1
+    S, D = paths.STRESS, paths.DISPLACEMENT
+    res = gm.GridResolution.scaled(4.0)
+    for path in (paths.three_step(6 * um, 2),
+                 paths.LoadPath((paths.Stage((S, D, D), (500e6, 0.0, 0.0), 2),
+                                 paths.Stage((S, D, D), (500e6, 4 * um, 0.0), 2)))):
+        full = gm.simulate_grid(p, path, res)
+        light = gm.simulate_grid(p, path, res, full_tangent=False)
+        np.testing.assert_array_equal(full.stress.values, light.stress.values)
+        np.testing.assert_array_equal(full.iterations.values, light.iterations.values)
+        assert "tangent" not in light and light.attrs["stress_evaluations"] < full.attrs["stress_evaluations"]
+    assert light.attrs["stress_evaluations"] > light.sizes["step"]
+    assert gm.simulate_grid(p, paths.three_step(6 * um, 2), res, full_tangent=False).attrs["stress_evaluations"] == 7
+    with pytest.raises(ValueError, match="full_tangent"):
+        gm.simulate_grid(p, path, res, full_tangent="yes")

@@ -61,7 +61,11 @@ def test_convergence_study_quick_run(tmp_path, capsys):
     assert module.main(["--quick", "--outdir", str(tmp_path)]) == 0
     ds = xr.open_dataset(tmp_path / "convergence.nc", engine="netcdf4")
     assert set(ds["error"].dims) == {"method", "n", "replica", "quantity"}
-    assert set(ds.method.values) == {"mc", "rqmc", "pruned", "pruned_mc", "grid"}
+    assert set(ds.method.values) == {"mc", "rqmc", "pruned", "pruned_mc", "grid", "grid_forces"}
+    # the two grid variants differ only in Step 4: same errors, the published one costs more
+    for v in ("grid", "grid_forces"):
+        assert np.isfinite(ds["rms_error"].sel(method=v)).any()
+    np.testing.assert_array_equal(ds["error"].sel(method="grid").values, ds["error"].sel(method="grid_forces").values)
     for var in ("error", "wall_time", "rms_error", "mean_wall_time"):
         assert ds[var].attrs["units"] and ds[var].attrs["long_name"]
     for m in ds.method.values:
@@ -73,7 +77,8 @@ def test_convergence_study_quick_run(tmp_path, capsys):
     assert e[-1] < e[0]
     ds.close()
     table = (tmp_path / "convergence.md").read_text()
-    assert "| fig13_R1 | rqmc |" in table and "Speed-up" in table
+    assert "| fig13_R1 | rqmc |" in table and "Speed-up against the paper's grid method" in table
+    assert "| fig11_R1 | 1e-02 |" in table and "grid_forces time" in table
     assert (tmp_path / "convergence.png").stat().st_size > 0
 
 
