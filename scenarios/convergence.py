@@ -56,18 +56,16 @@ Monte Carlo (SolverSettings) and the grid; OMP_WAIT_POLICY=PASSIVE (set below un
 set: with the default spinning policy a small parallel region took ~10 ms instead of ~0.1 ms
 whenever other processes shared the cores).
 
-Sizes and replicas (chosen to keep the full study near 12 minutes on the 2-core machine):
-n = 2^10 ... 2^20 (1024 ... 1 048 576) in factors of 4; 4 replicas up to 2^16, 3 at 2^18 and
-2 at 2^20 (fewer where each run costs seconds; the RMS at 2^20 is therefore rougher);
-grid scales s = 4, 2, 1 for Fig. 13 (the published run already takes minutes there: ~10
-stress evaluations per increment; halving s costs ~15x), 4, 2, 1.4, 1, 0.7 for the
-displacement-controlled Fig. 11 (one evaluation per increment; s = 0.5 takes ~75 s more and
-reaches 6.5e-7) and 4, 2, 1.4, 1 for the closure (s = 0.7 takes ~10 min there: 1e9 points
-per evaluation and ~10 evaluations per increment).
+Sizes and replicas: n = 2^10 ... 2^22 (--n-max) in factors of 4, 4 replicas (--replicas) up to
+2^20 and 3 at 2^22; grid scales s = 4, 2, 1 for Fig. 13 (the published run takes minutes there:
+grid_forces ~10 and grid ~20 stress evaluations per increment; halving s costs ~15x), 4, 2,
+1.4, 1, 0.7 for the displacement-controlled Fig. 11 (four evaluations per increment with grid,
+one with grid_forces) and 4, 2, 1.4, 1 for the closure (s = 0.7 would take ~10-20 min there:
+1e9 points per evaluation).
 
-Run:   python scenarios/convergence.py            (full study: 12.8 min on this 2-core machine at load
-                                                   average 2-3, 26 min at load 4-5)
-       python scenarios/convergence.py --quick    (tiny smoke run, < 1 min)
+Run:   python scenarios/convergence.py            (full study: 30 min on this 2-core machine at load
+                                                   average 1.5-2, half of it the grid runs at s = 1)
+       python scenarios/convergence.py --quick    (smoke run, about 1 min)
 Writes outputs/convergence.nc (dims method, n, replica, quantity; wall_time over method, n,
 replica, scene), outputs/convergence.png (log-log error of the curve against wall time, one
 line per method, one panel per scene) and outputs/convergence.md (table for the README:
