@@ -280,6 +280,8 @@ METHODS = {
     "pruned_mc": lambda sc, n, seed: run_pruned(sc, n, seed, "random"),
 }
 GRIDS = {"grid": True, "grid_forces": False}  # grid method -> full_tangent (True: Step 4 as published)
+BASELINES = {"grid": "the paper's grid method (Steps 1-5 as published, tangent at every increment)",
+             "grid_forces": "the grid with the lighter Step 4 (grid_forces: no tangent unless iterating)"}
 
 
 def replicas_for(n, replicas):
@@ -369,10 +371,6 @@ def summary_table(res, sc_names, methods):
     for grid in (g for g in GRIDS if g in methods):
         out += speedup_tables(curve, res, sc_names, others, grid)
     return "\n".join(out)
-
-
-BASELINES = {"grid": "the paper's grid method (Steps 1-5 as published, tangent at every increment)",
-             "grid_forces": "the grid with the lighter Step 4 (grid_forces: no tangent unless iterating)"}
 
 
 def speedup_tables(curve, res, sc_names, others, grid):
