@@ -379,23 +379,39 @@ def _inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R
             r[i], R[i], u[i], cos_phi[i], p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
 
 
+@numba.njit(cache=True, inline="always")
+def _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
+               hi_cdf, lo, hi, b, c, d):
+    """Points blk NET_BLOCK .. (blk + 1) NET_BLOCK - 1 of the net, from the first one computed directly."""
+    scale = 1.0 / float(1 << SOBOL_BITS)
+    i0, i1 = blk * NET_BLOCK, min(r.size, (blk + 1) * NET_BLOCK)
+    x = np.empty(4, dtype=np.int64)
+    net_point(W, shift, s, i0, x)
+    for i in range(i0, i1):
+        r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
+            float(x[0]) * scale, float(x[1]) * scale, float(x[2]) * scale, float(x[3]) * scale, p_band,
+            nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
+        net_next(W, i, x)
+
+
 @numba.njit(cache=True, parallel=True)
 def _sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
                 lo, hi, b, c, d):
     """The scrambled Sobol' net of r.size = 2^m points (:func:`asperity_sim.sobol.net_directions`) through
     :func:`_asperity_at`, generated in increasing order of the height uniform: already sorted, no
     array of uniforms.  Blocks of points run in parallel, each from its first point computed directly."""
-    n = r.size
-    scale = 1.0 / float(1 << SOBOL_BITS)
-    for blk in numba.prange((n + NET_BLOCK - 1) // NET_BLOCK):
-        i0, i1 = blk * NET_BLOCK, min(n, (blk + 1) * NET_BLOCK)
-        x = np.empty(4, dtype=np.int64)
-        net_point(W, shift, s, i0, x)
-        for i in range(i0, i1):
-            r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
-                float(x[0]) * scale, float(x[1]) * scale, float(x[2]) * scale, float(x[3]) * scale, p_band,
-                nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
-            net_next(W, i, x)
+    for blk in numba.prange((r.size + NET_BLOCK - 1) // NET_BLOCK):
+        _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
+                   hi_cdf, lo, hi, b, c, d)
+
+
+@numba.njit(cache=True)
+def _sample_net_serial(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
+                       hi_cdf, lo, hi, b, c, d):
+    """:func:`_sample_net` of one block (r.size <= NET_BLOCK) on the calling thread: the same points, without
+    the cost of starting a parallel region, which exceeds the work itself for small nets."""
+    _net_block(0, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
+               lo, hi, b, c, d)
 
 
 @numba.njit(cache=True)
@@ -511,7 +527,8 @@ class Population:
         constants = (p_band, *_quantile_table(shape), radius, *R_const, params.b, params.c, params.d)
         if sampler == "sobol" and n & (n - 1) == 0:
             r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
-            _sample_net(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
+            kernel = _sample_net_serial if n <= NET_BLOCK else _sample_net
+            kernel(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
         else:
             U = unit_points(n, seed, sampler)
             order = _argsort_unit(U[:, 0])  # before the outputs exist: the sort's work arrays are freed

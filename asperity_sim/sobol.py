@@ -57,27 +57,26 @@ def scrambled_directions(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
     a random unit lower-triangular binary matrix L_j; L_j is invertible, so the points remain
     a digital net.
     """
-    below = np.tril(rng.integers(0, 2, size=(DIM, BITS, BITS), dtype=np.int64), k=-1)
-    rows = below + np.eye(BITS, dtype=np.int64)  # rows[j, i, l]: digit l enters digit i
-    masks = (rows << np.arange(BITS - 1, -1, -1, dtype=np.int64)).sum(axis=2)  # row i as a BITS-bit mask
+    coins = rng.integers(0, 2, size=(DIM, BITS, BITS), dtype=np.int64)  # coins[j, i, l], l < i: digit l enters i
     shift = rng.integers(0, 1 << BITS, size=DIM, dtype=np.int64)
-    return _scramble(_DIRECTIONS, masks), shift
+    return _scramble(_DIRECTIONS, coins), shift
 
 
 @numba.njit(cache=True)
-def _scramble(v, masks):
-    """out[j, k] has digit i = parity(masks[j, i] & v[j, k]) (digit 0 the most significant)."""
+def _scramble(v, coins):
+    """out[j, k] = L_j v[j, k] over GF(2): digit i = digit i of v xor the digits l < i with coins[j, i, l] = 1."""
     out = np.zeros_like(v)
     for j in range(v.shape[0]):
-        for k in range(v.shape[1]):
-            y = 0
-            for i in range(BITS):
-                w, parity = masks[j, i] & v[j, k], 0
+        for i in range(BITS):  # row i of L_j as a BITS-bit mask (digit 0 is the most significant bit)
+            mask = 1 << (BITS - 1 - i)
+            for l in range(i):
+                mask |= coins[j, i, l] << (BITS - 1 - l)
+            for k in range(v.shape[1]):
+                w, parity = mask & v[j, k], 0
                 while w:
                     parity ^= 1
                     w &= w - 1
-                y |= parity << (BITS - 1 - i)
-            out[j, k] = y
+                out[j, k] |= parity << (BITS - 1 - i)
     return out
 
 
@@ -131,16 +130,22 @@ def net_directions(m: int, seed) -> tuple[np.ndarray, np.ndarray, int]:
     scrambled direction numbers.
     """
     v, shift = scrambled_directions(np.random.default_rng(seed))
-    lead = v[0, :m] >> (BITS - m)  # cell digits of each direction number of the first coordinate
+    return _cell_directions(v, m), shift, int(shift[0]) >> (BITS - m) if m > 0 else 0
+
+
+@numba.njit(cache=True)
+def _cell_directions(v, m):
+    """W of :func:`net_directions`: column b is the xor of v[:, k] over the Gray-code digits k of the point
+    in cell 2^b xor s, found by a triangular solve over GF(2) (v[0, k] has its highest cell digit at m - 1 - k)."""
     W = np.zeros((DIM, m), dtype=np.int64)
-    for b in range(m):  # Gray code g of the point in cell (1 << b) xor s: triangular solve over GF(2)
-        rest, g = 1 << b, np.zeros(m, dtype=bool)
-        for k in range(m):  # lead[k] has its highest digit at bit m - 1 - k
+    for b in range(m):
+        rest = 1 << b
+        for k in range(m):
             if rest >> (m - 1 - k) & 1:
-                rest ^= int(lead[k])
-                g[k] = True
-        W[:, b] = np.bitwise_xor.reduce(v[:, :m][:, g], axis=1)
-    return W, shift, int(shift[0]) >> (BITS - m) if m > 0 else 0
+                rest ^= v[0, k] >> (BITS - m)
+                for j in range(DIM):
+                    W[j, b] ^= v[j, k]
+    return W
 
 
 @numba.njit(cache=True, inline="always")

@@ -95,3 +95,17 @@ def test_net_directions_visit_the_scrambled_points_in_order_of_their_first_coord
         np.testing.assert_array_equal(got, expected[np.argsort(expected[:, 0])])
         np.testing.assert_array_equal(np.floor(got[:, 0] * n), np.arange(n))
         np.testing.assert_array_equal(walk(W, shift, s, n // 3, n - n // 3) / 2.0**sobol.BITS, got[n // 3:])
+
+
+def test_matrix_scramble_is_the_product_with_a_unit_lower_triangular_matrix():
+    """Digits of the scrambled direction numbers = L_j (digits of v) mod 2, with L_j built from the
+    coins below its diagonal; computed here on digit arrays with numpy."""
+    rng = np.random.default_rng(8)
+    coins = rng.integers(0, 2, size=(sobol.DIM, sobol.BITS, sobol.BITS), dtype=np.int64)
+    got = sobol._scramble(sobol._DIRECTIONS, coins)
+    place = 1 << np.arange(sobol.BITS - 1, -1, -1, dtype=np.int64)  # digit i has weight 2^(BITS-1-i)
+    for j in range(sobol.DIM):
+        L = np.tril(coins[j], k=-1) + np.eye(sobol.BITS, dtype=np.int64)
+        digits = (sobol._DIRECTIONS[j][None, :] & place[:, None]) != 0  # digits[i, k] of v[j, k]
+        expected = ((L @ digits.astype(np.int64)) % 2 * place[:, None]).sum(axis=0)
+        np.testing.assert_array_equal(got[j], expected)
