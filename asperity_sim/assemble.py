@@ -528,6 +528,26 @@ def assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, 
                     theta_birth, has_birth, tan_max, partial)
 
 
+@numba.njit(cache=True)
+def assemble_paper_steps(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, E_star, lam, mu, beta, n, scale,
+                         partial, out):
+    """:func:`paper_bounds`, :func:`assemble_paper_serial` and :func:`finish` at every row of ``deltas``.
+
+    Policy follow only (no frozen angles).  Row i of ``out`` (m, N_OUT) holds the flat
+    result at ``deltas[i]``, bit-identical to one evaluation there: under a path-independent
+    law the increments of a displacement-controlled stage are independent, and a small
+    population need not pay a round trip through Python for each of them.
+    """
+    no_birth = np.empty(0)
+    for i in range(deltas.shape[0]):
+        d = deltas[i]
+        n_active, tan_max = paper_bounds(r, R_min, r_o, k_e, beta, d, no_birth)
+        assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, no_birth, tan_max,
+                              partial)
+        finish(partial, (n_active + CHUNK - 1) // CHUNK, n, scale, out[i])
+        out[i, O_NA] = n_active
+
+
 # layout of the flat result of :func:`finish` (one float array per evaluation)
 O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
 N_OUT = 29
@@ -765,6 +785,26 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
                      workspace.partial)
     finish(workspace.partial, (n_active + CHUNK - 1) // CHUNK, pop.n, scale, out)
     out[O_NA] = n_active
+    return evaluation_from(d, out)
+
+
+def evaluate_steps(pop, deltas, workspace) -> np.ndarray:
+    """Flat results (m, N_OUT) of the ``paper`` law under policy follow at each row of ``deltas`` (m, 3) [m].
+
+    One serial kernel call (:func:`assemble_paper_steps`) for all rows, each bit-identical to
+    :func:`evaluate` there; meant for small populations, where the per-call overhead of
+    :func:`evaluate` exceeds the kernel time.  Read a row with :func:`evaluation_from`.
+    ``deltas`` finite and C-contiguous, ``workspace`` a :class:`Workspace` for ``pop``.
+    """
+    r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
+    out = np.empty((deltas.shape[0], N_OUT))
+    assemble_paper_steps(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e, E_star, lam,
+                         mu, beta, pop.n, scale, workspace.partial, out)
+    return out
+
+
+def evaluation_from(d, out) -> Evaluation:
+    """The :class:`Evaluation` at ``d`` from one flat result row ``out`` (N_OUT,) of :func:`finish`."""
     return Evaluation(
         delta=d,
         stress=out[O_STRESS:O_STRESS + 3],

@@ -2,9 +2,11 @@
 
 Owns the loop: for each stage, increments with cut-backs; for each increment, a Newton
 solve (:mod:`asperity_sim.solver`), then commit (birth angles under policy ``birth``) and
-record.  The loop runs inside ``try/finally`` so what converged is always kept: on
-failure the exception carries the partial dataset (and it is written if an output
-file was asked for).
+record.  Displacement-controlled increments of a small population under the ``paper``
+law (one evaluation each, nothing to commit) go through one kernel call per batch instead
+(:meth:`_Run.prescribed_batch`), with the same bits.  The loop runs inside ``try/finally``
+so what converged is always kept: on failure the exception carries the partial dataset
+(and it is written if an output file was asked for).
 
 Every input is checked before any work.  A run stops only with a named
 :class:`SimulationError` that says why (a stress the interface cannot carry, an increment
@@ -28,8 +30,9 @@ import numpy as np
 
 from . import __version__
 from . import checkpoint as ckpt
-from .assemble import (LAWS, POLICIES, Evaluation, Workspace, birth_angles, check_choice, check_delta, evaluate,
-                       evaluate_unchecked, snapshot, sqrt_nonneg)
+from .assemble import (CHUNK, LAWS, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, POLICIES, SERIAL_CHUNKS,
+                       Evaluation, Workspace, birth_angles, check_choice, check_delta, evaluate, evaluate_steps,
+                       evaluate_unchecked, evaluation_from, snapshot, sqrt_nonneg)
 from .params import InterfaceParams, check_real
 from .paths import LoadPath, Stage
 from .population import N_MAX, SAMPLERS, Population
@@ -37,6 +40,9 @@ from .recorder import Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
 from .state import MDRHistory
 from .variables import HISTORY_VARIABLES, STEP_VARIABLES
+
+
+BATCH = 64  # displacement-controlled increments per kernel call (the wall-time limit is checked between calls)
 
 
 class SimulationError(RuntimeError):
@@ -360,6 +366,56 @@ class _Run:
                 "checkpoint_every": every, "wall_time_s": wall}
         ckpt.save(target, meta=meta, arrays=arrays)
 
+    # -- displacement-controlled increments in batches --------------------------------------------
+
+    def prescribed_batch(self, stage, i_stage, end, nominal, smallest, checkpoint_every) -> bool:
+        """Run up to BATCH coming increments of a displacement-controlled stage in one kernel call; True if any.
+
+        Under the path-independent ``paper`` law and policy follow, with no history to commit,
+        such an increment is one evaluation at a known Delta, with no Newton solve: a small
+        population (serial kernels) evaluates them in one call
+        (:func:`~asperity_sim.assemble.evaluate_steps`), bit-identical to the loop, instead of
+        paying a round trip through Python for each (the driver does this only when no
+        progress callback watches each increment).  Stops before the increment that ends the
+        stage, takes a snapshot or a checkpoint (the loop does those) and at a non-finite
+        result (the loop cuts it back); the loop goes on from the position left here.
+        """
+        pos, rec, params = self.pos, self.rec, self.params
+        plan, ds, s, step = [], pos.ds, pos.s, rec.size
+        while len(plan) < BATCH:  # the loop's own increments, each converging at once (0 iterations)
+            ds = min(ds, 1.0 - s)
+            s = 1.0 if s + ds > 1.0 - 1e-12 else s + ds
+            if (s >= 1.0 - 1e-12 or step in self.snap_steps
+                    or (checkpoint_every is not None and step % checkpoint_every == 0)):
+                break
+            plan.append((s, ds))
+            ds = _next_ds(stage, ds, 0, 0, nominal, smallest)
+            step += 1
+        if not plan:
+            return False
+        fractions = np.array([f for f, _ in plan])
+        start = pos.start_delta
+        deltas = start + fractions[:, None] * (end - start)  # the loop's targets, row by row
+        out = evaluate_steps(self.pop, deltas, self.ws)
+        finite = np.isfinite(out[:, :O_SE]).all(axis=1)  # stress, tangent, covariance (as the solver checks)
+        m = len(plan) if finite.all() else int(np.argmin(finite))
+        if m == 0:
+            return False
+        rec.extend(displacement=deltas[:m], stress=out[:m, O_STRESS:O_STRESS + 3],
+                   stress_stderr=out[:m, O_SE:O_SE + 3], displacement_stderr=0.0,
+                   tangent=out[:m, O_TANGENT:O_TANGENT + 9].reshape(m, 3, 3),
+                   n_contact=out[:m, O_NC], n_slip=out[:m, O_NS], n_partial=out[:m, O_NP],
+                   theta_am=[_theta_am(params, max(0.0, params.r_o + d1)) for d1 in deltas[:m, 0]],
+                   mean_theta=out[:m, O_TH], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0)
+        # the loop's position after the last of them (the point before it feeds the cubic predictor)
+        before, s_before = (self.delta, pos.s) if m == 1 else (deltas[m - 2], plan[m - 2][0])
+        s_last, ds_last = plan[m - 1]
+        self.ev = evaluation_from(deltas[m - 1], out[m - 1])
+        self.delta = deltas[m - 1].copy()
+        pos.prev_s, pos.prev_delta, pos.prev_slope = s_before, before, (self.delta - before) / (s_last - s_before)
+        pos.s, pos.ds = s_last, _next_ds(stage, ds_last, 0, 0, nominal, smallest)
+        return True
+
     # -- the loop ---------------------------------------------------------------------------------
 
     def go(self, *, output, progress, max_wall_time, checkpoint, checkpoint_every):
@@ -392,8 +448,17 @@ class _Run:
                                  if free.any() else 0.0)
                     pos.started = True
                 ramped = _ramped(free, pos.start_stress, end)  # stage constant
+                # increments that are one evaluation each, on serial kernels, with nobody watching each one
+                batches = (not free.any() and self.law == "paper" and self.theta_birth is None
+                           and self.pop.n <= SERIAL_CHUNKS * CHUNK and progress is None)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
+                    if batches and cuts == 0 and not (max_wall_time is not None
+                                                      and time.perf_counter() - t0 > max_wall_time):
+                        consistent = False
+                        if self.prescribed_batch(stage, i_stage, end, nominal, smallest, checkpoint_every):
+                            ds = pos.ds
+                        consistent = True
                     s = pos.s
                     if max_wall_time is not None and time.perf_counter() - t0 > max_wall_time:
                         failure = WallTimeExceededError(
@@ -440,13 +505,7 @@ class _Run:
                     step = rec.size - 1
                     if step in self.snap_steps or (self.snap_stage_ends and s_new >= 1.0 - 1e-12):
                         self.take_snapshot(step)
-                    if stage.adaptive:
-                        ds = min(ds * (1.5 if result.iterations <= 3 else 1.0), stage.max_fraction)
-                        if result.iterations > 8:
-                            ds = max(0.5 * ds, smallest)  # never below the smallest increment: no Zeno stall
-                    else:
-                        ds = min(2.0 * ds, nominal) if cuts else nominal
-                    cuts = 0
+                    ds, cuts = _next_ds(stage, ds, result.iterations, cuts, nominal, smallest), 0
                     pos.s, pos.ds = s_new, ds
                     stage_done = s_new >= 1.0 - 1e-12
                     if stage_done:
@@ -484,6 +543,16 @@ class _Run:
             if failure is not None:
                 failure.dataset = ds_out
         return ds_out
+
+
+def _next_ds(stage, ds, iterations, cuts, nominal, smallest):
+    """Size of the next increment (fraction of the stage) after one that converged in ``iterations``."""
+    if stage.adaptive:
+        ds = min(ds * (1.5 if iterations <= 3 else 1.0), stage.max_fraction)
+        if iterations > 8:
+            ds = max(0.5 * ds, smallest)  # never below the smallest increment: no Zeno stall
+        return ds
+    return min(2.0 * ds, nominal) if cuts else nominal
 
 
 def length_scale(params, path) -> float:

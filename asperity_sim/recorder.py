@@ -22,7 +22,7 @@ _SIZES = {"axis": 3, "axis_k": 3, "from_state": 4, "to_state": 4}
 
 
 class Recorder:
-    """Growable per-step buffers; ``append`` one converged increment at a time."""
+    """Growable per-step buffers; ``append`` one converged increment, or ``extend`` several."""
 
     def __init__(self, capacity: int, variables=STEP_VARIABLES):
         self.size = 0
@@ -35,17 +35,30 @@ class Recorder:
         self.snapshots = []
 
     def append(self, **values):
-        if self.size == self._capacity:
-            self._capacity *= 2
-            for name, a in self._buf.items():
-                grown = np.zeros((self._capacity,) + a.shape[1:], dtype=a.dtype)
-                grown[: self.size] = a[: self.size]
-                self._buf[name] = grown
+        self._reserve(1)
         if not values.keys() >= self._buf.keys():
             raise KeyError(f"record is missing {sorted(self._buf.keys() - values.keys())}")
         for name, v in values.items():
             self._buf[name][self.size] = v
         self.size += 1
+
+    def extend(self, **columns):
+        """Append m increments at once: each value holds m rows, or one value for all of them."""
+        m = len(columns["stress"])
+        self._reserve(m)
+        if not columns.keys() >= self._buf.keys():
+            raise KeyError(f"record is missing {sorted(self._buf.keys() - columns.keys())}")
+        for name, v in columns.items():
+            self._buf[name][self.size:self.size + m] = v
+        self.size += m
+
+    def _reserve(self, m):
+        if self.size + m > self._capacity:
+            self._capacity = max(2 * self._capacity, self.size + m)
+            for name, a in self._buf.items():
+                grown = np.zeros((self._capacity,) + a.shape[1:], dtype=a.dtype)
+                grown[: self.size] = a[: self.size]
+                self._buf[name] = grown
 
     def add_snapshot(self, step, arrays):
         self.snapshots.append((step, arrays))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from asperity_sim import Population, presets, reference
-from asperity_sim.assemble import birth_angles, evaluate, snapshot
+from asperity_sim.assemble import Workspace, birth_angles, evaluate, evaluate_steps, evaluation_from, snapshot
 
 um = 1e-6
 R1, S1 = presets.R1, presets.S1
@@ -270,3 +270,20 @@ def test_kernel_bits_equal_compiled_and_from_cache(tmp_path):
     first = runs[0].split()
     assert runs[0] == runs[1]
     assert first[:len(first) // 2] == first[len(first) // 2:]  # 1 and 2 threads
+
+
+def test_evaluate_steps_gives_the_bits_of_evaluate_at_each_row():
+    """One kernel call over many displacements (no contact, closure only, shear in every state)."""
+    pop = Population.sample(R1, 3000, seed=2, sampler="sobol")
+    rng = np.random.default_rng(1)
+    deltas = np.concatenate([[[0.0, 0.0, 0.0], [-5 * um, 1 * um, 0.0], [12 * um, 0.0, 0.0]],
+                             rng.uniform([0.0, -20 * um, -20 * um], [25 * um, 20 * um, 20 * um], (30, 3))])
+    out = evaluate_steps(pop, deltas, Workspace(pop.n))
+    assert out.shape[0] == len(deltas)
+    for d, row in zip(deltas, out):
+        got, expected = evaluation_from(d, row), evaluate(pop, d)
+        for name in ("stress", "stderr", "covariance", "tangent"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
+        for name in ("n_contact", "n_slip", "n_partial", "mean_theta", "n_active"):
+            assert getattr(got, name) == getattr(expected, name), name
+    assert evaluation_from(deltas[0], out[0]).n_contact == 0 < evaluation_from(deltas[2], out[2]).n_contact

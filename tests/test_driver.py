@@ -889,3 +889,141 @@ def test_cubic_predictor_saves_newton_iterations_on_the_fig13_path():
     assert int(cubic.iterations.sum()) < 0.9 * int(linear.iterations.sum())
     np.testing.assert_allclose(cubic.stress.values, linear.stress.values, rtol=1e-8, atol=1e-6 * 500e6)
     np.testing.assert_allclose(cubic.displacement.values, linear.displacement.values, rtol=1e-7)
+
+
+# --------------------------------------------------------------------------- displacement-controlled increments in batches
+
+
+def run_both(monkeypatch, params, path, n, **kw):
+    """(batched run, stepwise run, rows evaluated in batches) of the same population and arguments."""
+    from asperity_sim import driver
+
+    pop = Population.sample(params, n, seed=4, sampler="sobol")
+    rows = []
+    real = driver.evaluate_steps
+
+    def counted(pop, deltas, ws):
+        rows.append(len(deltas))
+        return real(pop, deltas, ws)
+
+    monkeypatch.setattr(driver, "evaluate_steps", counted)
+    batched = simulate(params, path, population=pop, **kw)
+    monkeypatch.setattr(driver, "BATCH", 0)  # no batches: every increment through the Newton loop
+    stepwise = simulate(params, path, population=pop, **kw)
+    return batched, stepwise, rows
+
+
+def assert_same_records(a, b):
+    assert set(a.data_vars) == set(b.data_vars)
+    for name in a.data_vars:
+        assert a[name].dtype == b[name].dtype, name
+        assert np.array_equal(a[name].values, b[name].values), name
+
+
+@pytest.mark.parametrize("snapshots", [None, [0, 5, 17, 18], "stage_ends"])
+def test_batched_displacement_increments_are_bit_identical_to_the_loop(monkeypatch, snapshots):
+    """The 3-step path of a small population: all but the stage-ending and snapshot increments go through
+    batches, and every recorded variable (snapshots included) has the bits of the Newton loop's."""
+    path = paths.three_step(15e-6, 10)
+    batched, stepwise, rows = run_both(monkeypatch, presets.R1, path, 2**10, snapshots=snapshots)
+    assert_same_records(batched, stepwise)
+    taken = set() if snapshots in (None, "stage_ends") else set(snapshots) - {0}
+    loop_steps = {10, 20, 30} | taken  # stage ends and snapshot steps are the loop's
+    assert sum(rows) == 30 - len(loop_steps) and len(rows) >= 3
+
+
+def test_batches_follow_adaptive_increments_and_leave_stress_control_to_the_loop(monkeypatch):
+    S, D = "s", "d"
+    path = LoadPath((Stage((D, D, D), (8e-6, 0.0, 0.0), 12, adaptive=True, max_fraction=0.3),
+                     Stage((S, D, D), (80e6, 0.0, 0.0), 4),
+                     Stage((D, D, D), (12e-6, 6e-6, -2e-6), 9)))
+    batched, stepwise, rows = run_both(monkeypatch, presets.S1, path, 3000)
+    assert_same_records(batched, stepwise)
+    stage = batched.stage.values
+    assert (stage == 1).sum() < 12  # the adaptive stage grew its increments, in batches too
+    assert sum(rows) == (stage == 1).sum() - 1 + (stage == 3).sum() - 1
+
+
+def test_batches_stop_before_checkpoints_and_the_checkpoints_match(monkeypatch, tmp_path):
+    from asperity_sim import checkpoint as ckpt
+
+    path = paths.three_step(15e-6, 7)
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    batched, stepwise, rows = run_both(monkeypatch, presets.R1, path, 2**9, checkpoint=a, checkpoint_every=4)
+    assert rows and max(rows) <= 3
+    simulate(presets.R1, path, population=Population.sample(presets.R1, 2**9, seed=4, sampler="sobol"),
+             checkpoint=b, checkpoint_every=4)  # BATCH is still 0 here: stepwise
+    assert_same_records(batched, stepwise)
+    (meta_a, arr_a), (meta_b, arr_b) = ckpt.load(a, asperity_sim.__version__), ckpt.load(b, asperity_sim.__version__)
+    assert meta_a["steps_recorded"] == meta_b["steps_recorded"] == 21
+    assert arr_a.keys() == arr_b.keys()
+    for key in arr_a:
+        assert np.array_equal(arr_a[key], arr_b[key], equal_nan=True), key
+
+
+def test_a_non_finite_batch_row_is_left_to_the_loop(monkeypatch):
+    """A batch keeps the rows before the first non-finite one; the loop redoes that increment itself."""
+    from asperity_sim import driver
+
+    real = driver.evaluate_steps
+
+    def poisoned(pop, deltas, ws):
+        out = real(pop, deltas, ws)
+        out[len(out) // 2:, 0] = np.nan
+        return out
+
+    path = paths.three_step(15e-6, 10)
+    pop = Population.sample(presets.R1, 2**10, seed=4, sampler="sobol")
+    expected = simulate(presets.R1, path, population=pop)
+    monkeypatch.setattr(driver, "evaluate_steps", poisoned)
+    got = simulate(presets.R1, path, population=pop)
+    assert_same_records(got, expected)
+    assert np.all(np.isfinite(got.stress.values))
+
+
+def test_no_batches_with_a_progress_callback_or_a_large_population(monkeypatch):
+    """Each increment reaches the callback in order; populations beyond the serial kernels run the loop."""
+    from asperity_sim import driver
+    from asperity_sim.assemble import CHUNK, SERIAL_CHUNKS
+
+    monkeypatch.setattr(driver, "evaluate_steps", lambda *a: pytest.fail("batch used"))
+    seen = []
+    simulate(presets.R1, paths.three_step(15e-6, 3), n=256, progress=lambda *a: seen.append(a[3]))
+    assert seen == list(range(1, 10))
+    simulate(presets.R1, paths.three_step(15e-6, 1), n=SERIAL_CHUNKS * CHUNK + 1)
+
+
+def test_an_interruption_after_a_batch_checkpoints_the_loops_state(monkeypatch, tmp_path):
+    """Interrupted right after the first batch (steps 1-9), the run saves the state the loop has after
+    step 9 (its position and cubic-predictor point included), and resumes to the uninterrupted result."""
+    from asperity_sim import checkpoint as ckpt
+    from asperity_sim import driver
+
+    class Stop(Exception):
+        pass
+
+    path = paths.three_step(15e-6, 10)
+    pop = Population.sample(presets.R1, 2**10, seed=4, sampler="sobol")
+    full = simulate(presets.R1, path, population=pop)
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    def stop(*args):
+        raise Stop
+
+    with monkeypatch.context() as patch:
+        patch.setattr(driver, "solve_increment", stop)  # at the loop's first increment, step 10
+        with pytest.raises(Stop):
+            simulate(presets.R1, path, population=pop, checkpoint=a)
+
+    def stop_at_9(stage, n_stages, fraction, step, iterations):
+        if step == 9:
+            raise Stop
+
+    monkeypatch.setattr(driver, "BATCH", 0)
+    with pytest.raises(Stop):
+        simulate(presets.R1, path, population=pop, checkpoint=b, progress=stop_at_9)
+    (meta_a, arr_a), (meta_b, arr_b) = ckpt.load(a, asperity_sim.__version__), ckpt.load(b, asperity_sim.__version__)
+    assert meta_a["steps_recorded"] == meta_b["steps_recorded"] == 10
+    assert arr_a.keys() == arr_b.keys()
+    for key in arr_a:
+        assert np.array_equal(arr_a[key], arr_b[key], equal_nan=True), key
+    assert_same_records(asperity_sim.resume(a), full)
