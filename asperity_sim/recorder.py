@@ -8,6 +8,7 @@ the sampling, the law, the policy, the load path and the package version.
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 
 import numpy as np
 import xarray as xr
@@ -65,22 +66,41 @@ class Recorder:
 
     def to_dataset(self, attrs: dict, population=None) -> xr.Dataset:
         n = self.size
-        data_vars = {name: (var.dims, self._buf[name][:n].copy(), _attrs(var))
-                     for name, var in self._vars.items()}
-        coords = {
-            "step": ("step", np.arange(n), {"long_name": "converged increment", "units": "1"}),
-            "axis": ("axis", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis"])),
-            "axis_k": ("axis_k", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis_k"])),
-        }
-        if "transitions" in self._vars:
-            for dim in ("from_state", "to_state"):
-                coords[dim] = (dim, np.arange(4, dtype="i4"), _attrs(COORDS[dim]))
+        data = {name: self._buf[name][:n].copy() for name in self._vars}
         if self.snapshots and population is not None:
-            data_vars.update(_snapshot_vars(self.snapshots, population))
-        ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
-        ds["control"].attrs.update(flag_values=np.array([0, 1], dtype="i1"),
-                                   flag_meanings="displacement stress")
+            ds = _build(self._vars, data, _snapshot_vars(self.snapshots, population))
+        else:  # the common case: a copy of the cached empty Dataset of this shape, with the data swapped in
+            ds = _template(tuple(self._vars.items()), n).copy(deep=False, data=data)
+        ds.attrs = attrs
         return ds
+
+
+def _build(variables, data, extra=None) -> xr.Dataset:
+    """The Dataset of the step variables (data: name -> array) and of ``extra`` (name -> (dims, array, attrs))."""
+    data_vars = {name: (var.dims, data[name], _attrs(var)) for name, var in variables.items()}
+    data_vars.update(extra or {})
+    n = len(next(iter(data.values())))
+    coords = {
+        "step": ("step", np.arange(n), {"long_name": "converged increment", "units": "1"}),
+        "axis": ("axis", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis"])),
+        "axis_k": ("axis_k", np.array([1, 2, 3], dtype="i4"), _attrs(COORDS["axis_k"])),
+    }
+    if "transitions" in variables:
+        for dim in ("from_state", "to_state"):
+            coords[dim] = (dim, np.arange(4, dtype="i4"), _attrs(COORDS[dim]))
+    ds = xr.Dataset(data_vars, coords=coords)
+    ds["control"].attrs.update(flag_values=np.array([0, 1], dtype="i1"), flag_meanings="displacement stress")
+    return ds
+
+
+@functools.lru_cache(maxsize=32)
+def _template(variables: tuple, n: int) -> xr.Dataset:
+    """A Dataset of ``n`` steps to copy with new data: the constructor's checks and index building cost
+    about 1 ms, several times a small run's own work.  Never handed out itself; a shallow copy has its
+    own attribute dicts (global and per variable), so what a caller changes stays in its copy."""
+    variables = dict(variables)
+    return _build(variables, {name: np.zeros((n,) + tuple(_SIZES[d] for d in var.dims[1:]), dtype=var.dtype)
+                              for name, var in variables.items()})
 
 
 def _attrs(var):

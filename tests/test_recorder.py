@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from asperity_sim.recorder import Recorder
 from asperity_sim.variables import STEP_VARIABLES
@@ -47,3 +48,26 @@ def test_extend_broadcasts_one_value_and_names_a_missing_variable():
     del columns["tangent"]
     with pytest.raises(KeyError, match="tangent"):
         rec.extend(**columns)
+
+
+def test_dataset_from_the_cached_template_is_the_constructors_and_shares_nothing_mutable():
+    from asperity_sim import recorder
+
+    rng = np.random.default_rng(2)
+    rec = Recorder(5)
+    for row in rows(5, rng):
+        rec.append(**row)
+    first = rec.to_dataset({"title": "a"})
+    data = {name: rec._buf[name][:5] for name in STEP_VARIABLES}
+    xr.testing.assert_identical(first, recorder._build(STEP_VARIABLES, data).assign_attrs(title="a"))
+    # whatever a caller does to one result never reaches the next one
+    first["stress"].values[:] = -1.0
+    first["stress"].attrs["units"] = "changed"
+    first["control"].attrs["flag_meanings"] = "changed"
+    first["step"].attrs["units"] = "changed"
+    first.attrs["title"] = "changed"
+    second = rec.to_dataset({"title": "b"})
+    assert second["stress"].attrs["units"] == "Pa" and second["step"].attrs["units"] == "1"
+    assert second["control"].attrs["flag_meanings"] == "displacement stress"
+    assert second.attrs == {"title": "b"}
+    np.testing.assert_array_equal(second["stress"].values, data["stress"])
