@@ -17,7 +17,8 @@ fastmath, vector and scalar code give the same bits, and the per-asperity values
 a fixed order after the vector loop, so a result is bit-identical in every process whether
 its kernels were compiled or loaded from the numba cache.  Chunks go to the threads in a
 strided order (:func:`chunk_stride`) so that both threads get low (costly, in contact) and
-high (cheap) heights; small workloads run on the calling thread (:func:`assemble_paper_serial`).
+high (cheap) heights; small workloads run on the calling thread (:func:`assemble_paper_serial`, which
+also evaluates a batch of displacements in one call).
 
 Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
 Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
@@ -513,38 +514,29 @@ def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star,
 
 
 @numba.njit(cache=True)
-def assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth,
-                          tan_max, partial):
-    """:func:`assemble_paper` on the calling thread (same rows, so the same result).
+def assemble_paper_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, E_star, lam, mu, beta, theta_birth, n,
+                          scale, partial, out):
+    """The flat result (:func:`finish`) at every row of ``deltas`` (m, 3), on the calling thread.
 
-    For small workloads: a parallel region costs tens of microseconds on an idle machine and
-    milliseconds when other processes hold the cores (threads wait to be scheduled).
+    Row i of ``out`` (m, N_OUT) is what :func:`paper_bounds`, :func:`assemble_paper` and
+    :func:`finish` give at ``deltas[i]`` (same rows of partial sums, so the same bits).  For
+    small workloads: a parallel region costs tens of microseconds on an idle machine and
+    milliseconds when other processes hold the cores, and under a path-independent law the
+    increments of a displacement-controlled stage are independent, so a small population
+    need not pay a round trip through Python for each of them.  One kernel serves one
+    evaluation (m = 1) and such batches: a second serial kernel would compile the chunk loops
+    again.
     """
-    d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
-    for ic in range((n_active + CHUNK - 1) // CHUNK):
-        paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                    theta_birth, has_birth, tan_max, partial)
-
-
-@numba.njit(cache=True)
-def assemble_paper_steps(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, E_star, lam, mu, beta, n, scale,
-                         partial, out):
-    """:func:`paper_bounds`, :func:`assemble_paper_serial` and :func:`finish` at every row of ``deltas``.
-
-    Policy follow only (no frozen angles).  Row i of ``out`` (m, N_OUT) holds the flat
-    result at ``deltas[i]``, bit-identical to one evaluation there: under a path-independent
-    law the increments of a displacement-controlled stage are independent, and a small
-    population need not pay a round trip through Python for each of them.
-    """
-    no_birth = np.empty(0)
     for i in range(deltas.shape[0]):
-        d = deltas[i]
-        n_active, tan_max = paper_bounds(r, R_min, r_o, k_e, beta, d, no_birth)
-        assemble_paper_serial(r, R, u, cos_phi, sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, no_birth, tan_max,
-                              partial)
-        finish(partial, (n_active + CHUNK - 1) // CHUNK, n, scale, out[i])
+        d1, d2, d3 = deltas[i, 0], deltas[i, 1], deltas[i, 2]
+        n_active, tan_max = paper_bounds(r, R_min, r_o, k_e, beta, deltas[i], theta_birth)
+        closure, dc = closure_and_slope(r_o, d1)
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for ic in range(n_chunks):
+            paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
+                        theta_birth, has_birth, tan_max, partial)
+        finish(partial, n_chunks, n, scale, out[i])
         out[i, O_NA] = n_active
 
 
@@ -770,10 +762,13 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     out = np.empty(N_OUT)
     r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
     n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+    if law == "paper" and n_active <= SERIAL_CHUNKS * CHUNK:
+        assemble_paper_serial(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
+                              E_star, lam, mu, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
+        return evaluation_from(d, out)
     if law == "paper":
-        kernel = assemble_paper if n_active > SERIAL_CHUNKS * CHUNK else assemble_paper_serial
-        kernel(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, tb, tan_max,
-               workspace.partial)
+        assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, tb,
+                       tan_max, workspace.partial)
     else:
         if history is None:
             from .state import MDRHistory
@@ -788,18 +783,24 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     return evaluation_from(d, out)
 
 
+def _row(d):
+    """d (3,) as a C-contiguous (1, 3) view or copy: the one array layout the serial kernel is compiled for."""
+    return np.ascontiguousarray(d).reshape(1, 3)
+
+
 def evaluate_steps(pop, deltas, workspace) -> np.ndarray:
     """Flat results (m, N_OUT) of the ``paper`` law under policy follow at each row of ``deltas`` (m, 3) [m].
 
-    One serial kernel call (:func:`assemble_paper_steps`) for all rows, each bit-identical to
-    :func:`evaluate` there; meant for small populations, where the per-call overhead of
-    :func:`evaluate` exceeds the kernel time.  Read a row with :func:`evaluation_from`.
-    ``deltas`` finite and C-contiguous, ``workspace`` a :class:`Workspace` for ``pop``.
+    One call of the serial kernel (:func:`assemble_paper_serial`) for all rows, each
+    bit-identical to :func:`evaluate` there; meant for small populations, where the per-call
+    overhead of :func:`evaluate` exceeds the kernel time.  Read a row with
+    :func:`evaluation_from`.  ``deltas`` finite and C-contiguous, ``workspace`` a
+    :class:`Workspace` for ``pop``.
     """
     r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
-    assemble_paper_steps(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e, E_star, lam,
-                         mu, beta, pop.n, scale, workspace.partial, out)
+    assemble_paper_serial(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e, E_star, lam,
+                          mu, beta, _EMPTY, pop.n, scale, workspace.partial, out)
     return out
 
 
