@@ -761,8 +761,11 @@ def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluati
     tb = _EMPTY if theta_birth is None else theta_birth
     out = np.empty(N_OUT)
     r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
-    n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
-    if law == "paper" and n_active <= SERIAL_CHUNKS * CHUNK:
+    serial = law == "paper" and pop.n <= SERIAL_CHUNKS * CHUNK  # then n_active is small too: no bounds needed here
+    if not serial:
+        n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+        serial = law == "paper" and n_active <= SERIAL_CHUNKS * CHUNK
+    if serial:  # the serial kernel finds its own bounds
         assemble_paper_serial(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
                               E_star, lam, mu, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
         return evaluation_from(d, out)
