@@ -1,55 +1,63 @@
-"""Parallel reductions over asperities: stress, standard error, tangent, counts (SPEC §6).
+"""Generic reductions over asperities: stress, standard error, tangent and counts (SPEC §6).
 
-Owns the assembly of Eq. (23) as a Monte Carlo sum, sigma_i = N sum_j w_j f_ij, and
-of its exact tangent T_ik = d sigma_i / d Delta_k.  The kernel loops over the
-asperities that can touch (the population is sorted by height) in fixed-size chunks
-under ``prange``; each chunk writes its partial sums to its own row of a caller-owned
-array, so the result does not depend on the number of threads.
+Owns the assembly of Eq. (23) as a Monte Carlo sum, sigma_i = N w sum_j f_ij, and of its
+exact tangent T_ik = d sigma_i / d Delta_k, for any registered law (:mod:`asperity_sim.laws`):
+orientations, local frames, which asperities may touch, the sums and their statistics live
+here; the contact physics comes from the law's kernels.  The kernels loop over fixed-size
+chunks under ``prange`` and each chunk writes its partial sums to its own row of a
+caller-owned array, summed in order by :func:`finish`, so a result does not depend on the
+number of threads.
 
-Speed (``paper`` law, issue 5): an asperity above the closure is dropped before any
-trigonometry when it cannot touch at the largest angle in use (:func:`cannot_touch`) or,
-under policy follow, at its own largest angle (:func:`may_touch_follow`, from
-cos theta_m = 1 - k_e c / R alone).  Under policy follow the rest go through a branch-free
-loop that LLVM vectorises (:func:`paper_chunk_follow`, :func:`follow_values`: series
-trigonometry, selects instead of branches), about 3x faster per contact than the scalar libm
-loop kept for policy birth (:func:`paper_chunk_birth`); the two agree to round-off.  Without
-fastmath, vector and scalar code give the same bits, and the per-asperity values are summed in
-a fixed order after the vector loop, so a result is bit-identical in every process whether
-its kernels were compiled or loaded from the numba cache.  Chunks go to the threads in a
-strided order (:func:`chunk_stride`) so that both threads get low (costly, in contact) and
-high (cheap) heights; small workloads run on the calling thread (:func:`assemble_paper_serial`, which
-also evaluates a batch of displacements in one call).
+Which asperities are visited.  The population is sorted by height: only the first
+``n_active`` (:func:`bounds`) can touch.  Among them, under policy follow, the asperities
+that cannot touch at their own largest angle are dropped by :func:`may_touch_follow` before
+any trigonometry.
 
-Tangent of one asperity (see :func:`accumulate`), with Q = [n; s; t] (rows), the law's local
-Jacobian J and theta_1 = d theta / d Delta_1 (policy ``follow`` only; SPEC §3):
+- A path-independent law under policy follow: a branch-free block loop that LLVM vectorises
+  (:func:`values_follow`: series trigonometry and the law's branch-free kernel); small
+  workloads run on the calling thread (``reduce_serial``, also for a batch of displacements).
+  Policy birth: a scalar loop with the frozen angles (``chunk_birth``).
+- A history law: one pass over the committed contacts (their slots, streamed in slot order,
+  ``slot_pass``) and one pass over the population for contacts that are new in this trial
+  (``fresh_pass``, which skips committed contacts by their flag).  Nothing is paid for an
+  asperity out of contact beyond the cheap test; the commit (:mod:`asperity_sim.state`) makes
+  the same two passes, writing.
+
+Each law gets its own compiled copy of these kernels (:func:`kernels`,
+:func:`asperity_sim.laws.specialise`).  No fastmath anywhere: vector and scalar code give the
+same bits, and a result is the same whether its kernels were compiled or loaded from cache.
+
+Tangent of one contact (:func:`accumulate`), with Q = [n; s; t] (rows), the law's local
+Jacobian J and theta_1 = d theta / d Delta_1 (policy follow only; SPEC §3):
 
     d f / d Delta = Q^T J K + (f_n s - f_s n) theta_1 e_1^T
 
-using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
+where K = d(delta_n, a_s, a_t)/d Delta has rows n + delta_s theta_1 e_1, s - rho theta_1 e_1
+and t, (a_s, a_t) the law's tangential variables (totals, rho = delta_n; or increments since
+the committed state, rho = n.dDelta), using dn/dtheta = s, ds/dtheta = -n, dt/dtheta = 0.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from . import laws
 from .geometry import acos_unit, fsqrt, local_displacement, sin_cos_quarter, theta_m_and_slope
-from .laws.mdr import mdr_springs
-from .laws.paper import paper_local
 from .population import Population, reach
 
 CHUNK = 2048
-SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) the paper kernel runs serially
+SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
 I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
 N_ACC = 22
 _FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (i, j) of the products f_i f_j, in their order
 POLICIES = ("follow", "birth")
-LAWS = ("paper", "mdr")
 
 
 @numba.njit(cache=True, inline="always")
@@ -61,36 +69,29 @@ def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
 
 
 @numba.njit(cache=True, inline="always")
-def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, state):
+def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
     """Add one contact's global force, force products, tangent and counts to ``acc``.
 
-    ``J`` (3x3) is d(f_n, f_s, f_t)/d(delta_n, a_s, a_t) for the law's local variables
-    (a_s, a_t) = (delta_s, delta_t) (``paper``) or their increments (history laws).  Their
-    kinematic Jacobian K = d(delta_n, a_s, a_t)/d Delta has rows n + delta_s theta_1 e_1,
-    s - rho theta_1 e_1 and t, with rho = delta_n for totals and n.dDelta for increments.
-    T = Q^T J K + (f_n s - f_s n) theta_1 e_1^T.
+    ``out`` is the law's 13 values (f_n, f_s, f_t, J row-major, state code); see the module
+    docstring for K and the frame-rotation term.
     """
+    f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22, code = out
     n0, n1, n2 = ct, st * cp, st * sp
     s0, s1, s2 = -st, ct * cp, ct * sp
-    t0, t1, t2 = 0.0, -sp, cp
-    g0 = f_n * n0 + f_s * s0 + f_t * t0
+    t1, t2 = -sp, cp
+    g0 = f_n * n0 + f_s * s0
     g1 = f_n * n1 + f_s * s1 + f_t * t1
     g2 = f_n * n2 + f_s * s2 + f_t * t2
-    # K, row by row (theta enters column 0 only)
-    k00, k01, k02 = n0 + ds_tot * th1, n1, n2
-    k10, k11, k12 = s0 - rho * th1, s1, s2
-    k20, k21, k22 = t0, t1, t2
-    # A = J K
-    A00 = J[0, 0] * k00 + J[0, 1] * k10 + J[0, 2] * k20
-    A01 = J[0, 0] * k01 + J[0, 1] * k11 + J[0, 2] * k21
-    A02 = J[0, 0] * k02 + J[0, 1] * k12 + J[0, 2] * k22
-    A10 = J[1, 0] * k00 + J[1, 1] * k10 + J[1, 2] * k20
-    A11 = J[1, 0] * k01 + J[1, 1] * k11 + J[1, 2] * k21
-    A12 = J[1, 0] * k02 + J[1, 1] * k12 + J[1, 2] * k22
-    A20 = J[2, 0] * k00 + J[2, 1] * k10 + J[2, 2] * k20
-    A21 = J[2, 0] * k01 + J[2, 1] * k11 + J[2, 2] * k21
-    A22 = J[2, 0] * k02 + J[2, 1] * k12 + J[2, 2] * k22
-    # frame rotation at fixed local force: dn/dtheta = s, ds/dtheta = -n
+    k00, k10 = n0 + ds_tot * th1, s0 - rho * th1  # column 0 of K (theta enters it only)
+    A00 = J00 * k00 + J01 * k10
+    A01 = J00 * n1 + J01 * s1 + J02 * t1
+    A02 = J00 * n2 + J01 * s2 + J02 * t2
+    A10 = J10 * k00 + J11 * k10
+    A11 = J10 * n1 + J11 * s1 + J12 * t1
+    A12 = J10 * n2 + J11 * s2 + J12 * t2
+    A20 = J20 * k00 + J21 * k10
+    A21 = J20 * n1 + J21 * s1 + J22 * t1
+    A22 = J20 * n2 + J21 * s2 + J22 * t2
     v0 = (f_n * s0 - f_s * n0) * th1
     v1 = (f_n * s1 - f_s * n1) * th1
     v2 = (f_n * s2 - f_s * n2) * th1
@@ -103,9 +104,9 @@ def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, state):
     acc[6] += g0 * g1
     acc[7] += g0 * g2
     acc[8] += g1 * g2
-    acc[9] += n0 * A00 + s0 * A10 + t0 * A20 + v0
-    acc[10] += n0 * A01 + s0 * A11 + t0 * A21
-    acc[11] += n0 * A02 + s0 * A12 + t0 * A22
+    acc[9] += n0 * A00 + s0 * A10 + v0
+    acc[10] += n0 * A01 + s0 * A11
+    acc[11] += n0 * A02 + s0 * A12
     acc[12] += n1 * A00 + s1 * A10 + t1 * A20 + v1
     acc[13] += n1 * A01 + s1 * A11 + t1 * A21
     acc[14] += n1 * A02 + s1 * A12 + t1 * A22
@@ -113,9 +114,9 @@ def accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds_tot, rho, th1, state):
     acc[16] += n2 * A01 + s2 * A11 + t2 * A21
     acc[17] += n2 * A02 + s2 * A12 + t2 * A22
     acc[18] += 1.0
-    if state == 3:
+    if code == 3.0:
         acc[19] += 1.0
-    elif state == 2:
+    elif code == 2.0:
         acc[21] += 1.0
 
 
@@ -175,50 +176,6 @@ def chunk_stride(n_chunks):
         g -= 1
 
 
-@numba.njit(cache=True, inline="always")
-def paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                      theta_birth, tan_max, partial):
-    """Row ic of ``partial`` under policy birth: the sums of :func:`accumulate` over chunk ic."""
-    acc = np.zeros(N_ACC)
-    J = np.zeros((3, 3))
-    for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
-        cp, sp = cos_phi[j], sin_phi[j]
-        x = d1 - r[j]
-        if cannot_touch(x, cp * d2 + sp * d3, tan_max):
-            continue
-        th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, True)
-        ct, st = math.cos(th), math.sin(th)
-        dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
-        if dn <= 0.0:
-            continue
-        f_n, f_s, f_t, k_n, k_sec, dF_dst, dF_dn, slip = paper_local(
-            dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
-        dst = math.sqrt(ds * ds + dt * dt)
-        if dst > 0.0:
-            es, et = ds / dst, dt / dst
-        else:
-            es, et = 0.0, 0.0
-        extra = dF_dst - k_sec
-        J[0, 0] = k_n
-        J[1, 0], J[2, 0] = dF_dn * es, dF_dn * et
-        J[1, 1], J[1, 2] = k_sec + extra * es * es, extra * es * et
-        J[2, 1], J[2, 2] = extra * es * et, k_sec + extra * et * et
-        state = 3 if slip else (2 if dst > 0.0 else 1)
-        accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, dn, th1, state)
-        acc[20] += th
-    partial[ic, :] = acc
-
-
-# per-asperity values of the follow kernel, one row of BLOCK each: global force (3), tangent (9,
-# row-major), contact, full slip, partial slip (0 or 1) and theta of a contact
-V_G, V_T, V_NC, V_NS, V_NP, V_TH = 0, 3, 12, 13, 14, 15
-N_VAL = 16
-BLOCK = 256  # asperities per block (16 x 256 doubles of values = 32 KiB)
-# inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
-X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
-N_IN = 5
-
-
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def follow_angle(R_j, u_j, closure, k_e):
     """(theta, sin theta, cos theta, 1/R, cos theta_m unclipped, clipped, 2u/pi) under policy follow, branch-free.
@@ -243,135 +200,6 @@ def follow_slope(touch, y, yc, scale, k_e, inv_R, dc):
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu):
-    """:func:`paper_local` with selects instead of branches: (f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, 1/dst).
-
-    Both the stick and the slip form are computed with safe arguments; out of contact
-    (``touch`` False) the forces and stiffnesses are zero.
-    """
-    dn_safe = dn if touch else 1.0
-    C = c_hertz * fsqrt(R_j)
-    sq = fsqrt(dn_safe)
-    f_n = C * dn_safe * sq
-    k_n = 1.5 * C * sq
-    xs = dst / (lam * mu * dn_safe)
-    stick = xs < 1.0
-    om = fsqrt(1.0 - xs if stick else 0.0)
-    q = (1.0 + om + om * om) / (1.0 + om)
-    inv_dst = 1.0 / dst if dst > 0.0 else 0.0
-    k_sec = C * sq * q / lam if stick else mu * f_n * inv_dst
-    dF_dst = k_n * om / lam if stick else 0.0
-    dF_dn = mu * k_n * xs * (q - om) if stick else mu * k_n
-    f_n = f_n if touch else 0.0
-    k_n = k_n if touch else 0.0
-    k_sec = k_sec if touch else 0.0
-    dF_dst = dF_dst if touch else 0.0
-    dF_dn = dF_dn if touch else 0.0
-    return f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def store_counts(vals, i, touch, xs, stick, dst, th):
-    """Contact, full-slip and partial-slip flags and theta of a contact into column i of ``vals``."""
-    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
-    vals[V_NS * BLOCK + i] = 1.0 if touch & (xs >= 1.0) else 0.0
-    vals[V_NP * BLOCK + i] = 1.0 if touch & stick & (dst > 0.0) else 0.0
-    vals[V_TH * BLOCK + i] = th if touch else 0.0
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def follow_values(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, c_hertz, lam, mu):
-    """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
-
-    ``x`` = Delta_1 - r.  The same physics as :func:`paper_local` and :func:`accumulate` (with
-    J[0, 1] = J[0, 2] = 0: Hertz does not depend on the slip), written with selects instead of
-    branches, :func:`fsqrt` and series trigonometry instead of libm, so that LLVM vectorises
-    the loop that calls it.  An asperity out of contact gets zeros.
-    """
-    shear_ph = cp * d2 + sp * d3
-    dt = -sp * d2 + cp * d3
-    th, st, ct, inv_R, y, yc, scale = follow_angle(R_j, u_j, closure, k_e)
-    dn = ct * x + st * shear_ph
-    ds = -st * x + ct * shear_ph
-    touch = dn > 0.0
-    th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
-    dst = fsqrt(ds * ds + dt * dt)
-    f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst = paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu)
-    es, et = ds * inv_dst, dt * inv_dst
-    extra = dF_dst - k_sec
-    f_s, f_t = k_sec * ds, k_sec * dt
-    J10, J20 = dF_dn * es, dF_dn * et
-    J11, J12, J22 = k_sec + extra * es * es, extra * es * et, k_sec + extra * et * et
-    n0, n1, n2 = ct, st * cp, st * sp
-    s0, s1, s2 = -st, ct * cp, ct * sp
-    t1, t2 = -sp, cp
-    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
-    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1 + f_t * t1
-    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2 + f_t * t2
-    k00, k10 = n0 + ds * th1, s0 - dn * th1
-    A00, A01, A02 = k_n * k00, k_n * n1, k_n * n2
-    A10 = J10 * k00 + J11 * k10
-    A11 = J10 * n1 + J11 * s1 + J12 * t1
-    A12 = J10 * n2 + J11 * s2 + J12 * t2
-    A20 = J20 * k00 + J12 * k10
-    A21 = J20 * n1 + J12 * s1 + J22 * t1
-    A22 = J20 * n2 + J12 * s2 + J22 * t2
-    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
-    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
-    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
-    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1
-    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * A21
-    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * A22
-    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
-    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * A21
-    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * A22
-    store_counts(vals, i, touch, xs, stick, dst, th)
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def closure_values(vals, i, x, cp, sp, R_j, u_j, closure, dc, k_e, c_hertz, lam, mu):
-    """:func:`follow_values` at Delta_2 = Delta_3 = 0 (normal closure), the same bits with less work.
-
-    Without shear delta_t = 0 and delta_s = -sin(theta) x, so delta_st = |delta_s| (exactly
-    sqrt(delta_s²) in IEEE arithmetic), the shear force has no t component and the terms of
-    :func:`follow_values` that carry delta_t are exact zeros, left out here.
-    """
-    th, st, ct, inv_R, y, yc, scale = follow_angle(R_j, u_j, closure, k_e)
-    dn = ct * x
-    ds = -st * x
-    touch = dn > 0.0
-    th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
-    dst = -ds if ds < 0.0 else ds
-    f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick, inv_dst = paper_law_selects(touch, dn, dst, R_j, c_hertz, lam, mu)
-    es = ds * inv_dst
-    extra = dF_dst - k_sec
-    f_s = k_sec * ds
-    J10 = dF_dn * es
-    J11 = k_sec + extra * es * es
-    n0, n1, n2 = ct, st * cp, st * sp
-    s0, s1, s2 = -st, ct * cp, ct * sp
-    t1, t2 = -sp, cp
-    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
-    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1
-    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2
-    k00, k10 = n0 + ds * th1, s0 - dn * th1
-    A00, A01, A02 = k_n * k00, k_n * n1, k_n * n2
-    A10 = J10 * k00 + J11 * k10
-    A11 = J10 * n1 + J11 * s1
-    A12 = J10 * n2 + J11 * s2
-    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
-    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
-    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
-    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + (f_n * s1 - f_s * n1) * th1
-    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * (k_sec * t1)
-    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * (k_sec * t2)
-    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + (f_n * s2 - f_s * n2) * th1
-    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * (k_sec * t1)
-    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * (k_sec * t2)
-    store_counts(vals, i, touch, xs, stick, dst, th)
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
 def may_touch_follow(x, shear_ph, y, scale, tan_max):
     """False when the asperity cannot touch under policy follow, tested without trigonometry or branches.
 
@@ -387,162 +215,6 @@ def may_touch_follow(x, shear_ph, y, scale, tan_max):
     by_angle = ~(-x > shear_ph * tan_max * (1.0 + 1e-9))
     by_own = (y <= 0.0) | ((y < 1.0) & ~(scale * scale * (1.0 - y * y) * sh2 * (1.0 + 1e-9) < x * x * y * y))
     return (x > 0.0) | ((shear_ph > 0.0) & by_angle & by_own)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                       tan_max, partial):
-    """Row ic of ``partial`` under policy follow: :func:`paper_local` + :func:`accumulate`, vectorised.
-
-    Per block of BLOCK asperities: unless the whole block lies below the closure, a loop that
-    LLVM vectorises marks the asperities :func:`may_touch_follow` keeps (no trigonometry, no
-    branch), a scalar pass lists their positions and their inputs are copied, contiguous, into
-    ``inp`` (a single scalar loop that tested, stored and compacted at once cost about 1.7 times
-    more per asperity: in sheared states most asperities of a block are dropped here);
-    :func:`follow_values` (:func:`closure_values` for whole blocks without shear) fills ``vals``
-    in a loop that LLVM vectorises; the columns are summed in order.  No fastmath anywhere, so
-    vector and scalar code give the same bits and the sums do not depend on how LLVM
-    vectorised: the result is the same in every process, compiled or loaded from the cache.
-    """
-    lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
-    vals = np.empty(N_VAL * BLOCK)
-    inp = np.empty(N_IN * BLOCK)
-    kept = np.empty(BLOCK, dtype=np.int64)
-    at = np.empty(BLOCK, dtype=np.int64)
-    c_hertz = (4.0 / 3.0) * E_star
-    zero_shear = d2 == 0.0 and d3 == 0.0  # normal closure: closure_values, the same bits with less work
-    F0 = F1 = F2 = P00 = P11 = P22 = P01 = P02 = P12 = 0.0
-    T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
-    n_c = n_s = n_p = th_sum = 0.0
-    for b0 in range(lo, hi, BLOCK):
-        b1 = min(hi, b0 + BLOCK)
-        if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
-            m = b1 - b0
-            if zero_shear:
-                for i in range(m):
-                    closure_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i],
-                                   u[b0 + i], closure, dc, k_e, c_hertz, lam, mu)
-            else:
-                for i in range(m):
-                    follow_values(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
-                                  d2, d3, closure, dc, k_e, c_hertz, lam, mu)
-        else:
-            for j in range(b0, b1):  # vectorised: which asperities may touch
-                cp, sp = cos_phi[j], sin_phi[j]
-                keep = may_touch_follow(d1 - r[j], cp * d2 + sp * d3, 1.0 - k_e * closure / R[j],
-                                        u[j] * (2.0 / math.pi), tan_max)
-                kept[j - b0] = 1 if keep else 0
-            m = 0
-            for i in range(b1 - b0):  # their positions, contiguous
-                at[m] = b0 + i
-                m += kept[i]
-            for i in range(m):  # their inputs, contiguous
-                j = at[i]
-                inp[X_X * BLOCK + i] = d1 - r[j]
-                inp[X_CP * BLOCK + i] = cos_phi[j]
-                inp[X_SP * BLOCK + i] = sin_phi[j]
-                inp[X_R * BLOCK + i] = R[j]
-                inp[X_U * BLOCK + i] = u[j]
-            for i in range(m):  # without shear only the block at the closure comes here: no closure_values copy
-                follow_values(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, c_hertz, lam, mu)
-        for i in range(m):
-            g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
-            F0 += g0
-            F1 += g1
-            F2 += g2
-            P00 += g0 * g0
-            P11 += g1 * g1
-            P22 += g2 * g2
-            P01 += g0 * g1
-            P02 += g0 * g2
-            P12 += g1 * g2
-            T0 += vals[V_T * BLOCK + i]
-            T1 += vals[(V_T + 1) * BLOCK + i]
-            T2 += vals[(V_T + 2) * BLOCK + i]
-            T3 += vals[(V_T + 3) * BLOCK + i]
-            T4 += vals[(V_T + 4) * BLOCK + i]
-            T5 += vals[(V_T + 5) * BLOCK + i]
-            T6 += vals[(V_T + 6) * BLOCK + i]
-            T7 += vals[(V_T + 7) * BLOCK + i]
-            T8 += vals[(V_T + 8) * BLOCK + i]
-            n_c += vals[V_NC * BLOCK + i]
-            n_s += vals[V_NS * BLOCK + i]
-            n_p += vals[V_NP * BLOCK + i]
-            th_sum += vals[V_TH * BLOCK + i]
-    row = partial[ic]
-    row[I_F], row[I_F + 1], row[I_F + 2] = F0, F1, F2
-    row[I_FF], row[I_FF + 1], row[I_FF + 2], row[I_FF + 3], row[I_FF + 4], row[I_FF + 5] = P00, P11, P22, P01, P02, P12
-    row[I_T], row[I_T + 1], row[I_T + 2], row[I_T + 3], row[I_T + 4] = T0, T1, T2, T3, T4
-    row[I_T + 5], row[I_T + 6], row[I_T + 7], row[I_T + 8] = T5, T6, T7, T8
-    row[I_NC], row[I_NS], row[I_NP], row[I_TH] = n_c, n_s, n_p, th_sum
-
-
-@numba.njit(cache=True, inline="always")
-def paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                theta_birth, has_birth, tan_max, partial):
-    """Row ic of ``partial`` for the ``paper`` law, by policy."""
-    if has_birth:
-        paper_chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                          theta_birth, tan_max, partial)
-    else:
-        paper_chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                           tan_max, partial)
-
-
-@numba.njit(cache=True, parallel=True)
-def assemble_paper(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, E_star, lam, mu, theta_birth, tan_max,
-                   partial):
-    """Partial sums of forces, force products, tangents and counts for the ``paper`` law.
-
-    ``theta_birth`` is empty (policy follow) or holds, per asperity, the frozen angle of a
-    committed contact and NaN elsewhere (policy birth).  ``tan_max`` is tan of an upper
-    bound of every angle in use (:func:`~asperity_sim.population.reach`): an asperity above the closure that
-    cannot touch at that angle is skipped before any trigonometry (:func:`cannot_touch`;
-    under policy follow also by :func:`may_touch_follow`, per asperity).  ``partial`` has
-    shape (n_chunks, N_ACC) with n_chunks >= ceil(n_active / CHUNK); rows are overwritten.
-    Chunks are handed to the threads in the order of :func:`chunk_stride`.
-    """
-    d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure, dc = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
-    n_chunks = (n_active + CHUNK - 1) // CHUNK
-    stride = chunk_stride(n_chunks)
-    for k in numba.prange(n_chunks):
-        paper_chunk((k * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e,
-                    E_star, lam, mu, theta_birth, has_birth, tan_max, partial)
-
-
-@numba.njit(cache=True)
-def assemble_paper_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, E_star, lam, mu, beta, theta_birth, n,
-                          scale, partial, out):
-    """The flat result (:func:`finish`) at every row of ``deltas`` (m, 3), on the calling thread.
-
-    Row i of ``out`` (m, N_OUT) is what :func:`paper_bounds`, :func:`assemble_paper` and
-    :func:`finish` give at ``deltas[i]`` (same rows of partial sums, so the same bits).  For
-    small workloads: a parallel region costs tens of microseconds on an idle machine and
-    milliseconds when other processes hold the cores, and under a path-independent law the
-    increments of a displacement-controlled stage are independent, so a small population
-    need not pay a round trip through Python for each of them.  One kernel serves one
-    evaluation (m = 1) and such batches: a second serial kernel would compile the chunk loops
-    again.
-    """
-    has_birth = theta_birth.size > 0
-    for i in range(deltas.shape[0]):
-        d1, d2, d3 = deltas[i, 0], deltas[i, 1], deltas[i, 2]
-        n_active, tan_max = paper_bounds(r, R_min, r_o, k_e, beta, deltas[i], theta_birth)
-        closure, dc = closure_and_slope(r_o, d1)
-        n_chunks = (n_active + CHUNK - 1) // CHUNK
-        for ic in range(n_chunks):
-            paper_chunk(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, E_star, lam, mu,
-                        theta_birth, has_birth, tan_max, partial)
-        finish(partial, n_chunks, n, scale, out[i])
-        out[i, O_NA] = n_active
-
-
-# layout of the flat result of :func:`finish` (one float array per evaluation)
-O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
-N_OUT = 29
 
 
 @numba.njit(cache=True)
@@ -576,13 +248,25 @@ def finish(partial, n_chunks, n, scale, out):
     out[O_TH] = s[I_TH] / n_contact if n_contact else 0.0
 
 
-@numba.njit(cache=True)
-def paper_bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
-    """(n_active, tan_max) of the kernels at delta: :func:`~asperity_sim.population.reach` and tan of its angle.
 
-    ``theta_birth`` as in :func:`assemble_paper` (its largest frozen angle raises the bound).
-    The kernels themselves are called from Python: calling them from here would compile the
-    serial and the parallel kernel into this function too (twice the first-run JIT time).
+# layout of the flat result of :func:`finish` (one float array per evaluation)
+O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
+N_OUT = 29
+
+@numba.njit(cache=True, inline="always")
+def committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e):
+    """delta_n of asperity j at displacement ``delta_c`` (the committed one, or a reference), at its follow angle."""
+    closure_c, _ = closure_and_slope(r_o, delta_c[0])
+    th_c, _ = asperity_theta(u[j], inv_R, closure_c, k_e, 0.0)
+    dn_c, _, _ = local_displacement(delta_c[0] - r[j], delta_c[1], delta_c[2], math.cos(th_c), math.sin(th_c), cp, sp)
+    return dn_c
+
+
+@numba.njit(cache=True)
+def bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
+    """(n_active, tan_max): :func:`~asperity_sim.population.reach` at delta and tan of its angle bound.
+
+    ``theta_birth`` (empty under policy follow) raises the bound by its largest frozen angle.
     """
     theta_max = 0.0
     for tb in theta_birth:
@@ -592,67 +276,460 @@ def paper_bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
     return n_active, math.inf if theta >= 0.5 * math.pi - 1e-9 else math.tan(theta)
 
 
-@numba.njit(cache=True, inline="always")
-def fresh_spacing(r_j, R_j, dn_cap, k):
-    """Spring spacing of an asperity without history: covers delta_n up to 2 max(dn_cap - r, dn_cap/10)."""
-    return math.sqrt(2.0 * R_j * max(dn_cap - r_j, 0.1 * dn_cap)) / k
+# per-asperity values of the vectorised follow loop, one row of BLOCK each: global force (3), tangent
+# (9, row-major), contact, full slip, partial slip (0 or 1) and theta of a contact
+V_G, V_T, V_NC, V_NS, V_NP, V_TH = 0, 3, 12, 13, 14, 15
+N_VAL = 16
+BLOCK = 256  # asperities per block (16 x 256 doubles of values = 32 KiB)
+# inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
+X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
+N_IN = 5
 
 
-@numba.njit(cache=True, inline="always")
-def committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e):
-    """delta_n of asperity j at the committed displacement, at its follow angle (no history)."""
-    closure_c, _ = closure_and_slope(r_o, delta_c[0])
-    th_c, _ = asperity_theta(u[j], inv_R, closure_c, k_e, 0.0)
-    dn_c, _, _ = local_displacement(delta_c[0] - r[j], delta_c[1], delta_c[2],
-                                    math.cos(th_c), math.sin(th_c), cp, sp)
-    return dn_c
+# ---- templates: compiled once per law by :func:`kernels` (the names ``local``, ``trial`` and
+# ``commit_law`` are the law's kernels there; each template name is its own compiled copy) ----
 
+def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts):
+    """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
 
-@numba.njit(cache=True, inline="always")
-def mdr_history(j, slot, w, h_slot, dn_c_slot, r, R, u, inv_R, cp, sp, delta_c, r_o, k_e, dn_cap, k):
-    """(slot index or -1, n_hist, h, committed overlap) of asperity j."""
-    sl = slot[j]
-    if sl >= 0:
-        dn_c = dn_c_slot[sl]
-        return sl, (k if dn_c > 0.0 else 0), h_slot[sl], dn_c
-    return -1, 0, fresh_spacing(r[j], R[j], dn_cap, k), committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
-
-
-@numba.njit(cache=True, parallel=True)
-def assemble_mdr(r, R, u, cos_phi, sin_phi, n_active, delta, delta_c, r_o, k_e, E_star, lam, mu, theta_birth,
-                 slot, w, h_slot, dn_c_slot, dn_cap, partial):
-    """Partial sums for the ``mdr`` law: trial springs from the committed history, never written.
-
-    ``slot[j]`` indexes the history arrays (w (m, k, 2), h_slot, dn_c_slot) of asperity j
-    or is -1 (no history: a fresh contact with spacing :func:`fresh_spacing`).
+    ``x`` = Delta_1 - r.  :func:`accumulate` for a path-independent law, written with selects
+    instead of branches and series trigonometry instead of libm, so that the loop vectorises.
+    An asperity out of contact gets zeros.
     """
+    shear_ph = cp * d2 + sp * d3
+    dt = -sp * d2 + cp * d3
+    th, st, ct, inv_R, y, yc, scale = follow_angle(R_j, u_j, closure, k_e)
+    dn = ct * x + st * shear_ph
+    ds = -st * x + ct * shear_ph
+    touch = dn > 0.0
+    th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
+    f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22, code = local(dn if touch else 1.0, ds, dt, R_j,
+                                                                           consts)
+    f_n, f_s, f_t = (f_n, f_s, f_t) if touch else (0.0, 0.0, 0.0)
+    J00, J01, J02 = (J00, J01, J02) if touch else (0.0, 0.0, 0.0)
+    J10, J11, J12 = (J10, J11, J12) if touch else (0.0, 0.0, 0.0)
+    J20, J21, J22 = (J20, J21, J22) if touch else (0.0, 0.0, 0.0)
+    n0, n1, n2 = ct, st * cp, st * sp
+    s0, s1, s2 = -st, ct * cp, ct * sp
+    t1, t2 = -sp, cp
+    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
+    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1 + f_t * t1
+    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2 + f_t * t2
+    k00, k10 = n0 + ds * th1, s0 - dn * th1
+    A00 = J00 * k00 + J01 * k10
+    A01 = J00 * n1 + J01 * s1 + J02 * t1
+    A02 = J00 * n2 + J01 * s2 + J02 * t2
+    A10 = J10 * k00 + J11 * k10
+    A11 = J10 * n1 + J11 * s1 + J12 * t1
+    A12 = J10 * n2 + J11 * s2 + J12 * t2
+    A20 = J20 * k00 + J21 * k10
+    A21 = J20 * n1 + J21 * s1 + J22 * t1
+    A22 = J20 * n2 + J21 * s2 + J22 * t2
+    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
+    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
+    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
+    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1
+    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * A21
+    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * A22
+    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
+    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * A21
+    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * A22
+    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
+    vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
+    vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
+    vals[V_TH * BLOCK + i] = th if touch else 0.0
+
+
+def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial):
+    """Row ic of ``partial`` under policy follow: :func:`values_follow` over the asperities that may touch.
+
+    Per block of BLOCK asperities: unless the whole block lies below the closure, a loop that
+    LLVM vectorises marks the asperities :func:`may_touch_follow` keeps (no trigonometry, no
+    branch), a scalar pass lists them and copies their inputs, contiguous, into ``inp``;
+    :func:`values_follow` fills ``vals`` in a loop that LLVM vectorises; the columns are
+    summed in order (no fastmath: the same bits however LLVM vectorised).
+    """
+    lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
+    vals = np.empty(N_VAL * BLOCK)
+    inp = np.empty(N_IN * BLOCK)
+    kept = np.empty(BLOCK, dtype=np.int64)
+    at = np.empty(BLOCK, dtype=np.int64)
+    F0 = F1 = F2 = P00 = P11 = P22 = P01 = P02 = P12 = 0.0
+    T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
+    n_c = n_s = n_p = th_sum = 0.0
+    for b0 in range(lo, hi, BLOCK):
+        b1 = min(hi, b0 + BLOCK)
+        if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
+            m = b1 - b0
+            for i in range(m):
+                values_follow(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
+                              d2, d3, closure, dc, k_e, consts)
+        else:
+            for j in range(b0, b1):  # vectorised: which asperities may touch
+                cp, sp = cos_phi[j], sin_phi[j]
+                keep = may_touch_follow(d1 - r[j], cp * d2 + sp * d3, 1.0 - k_e * closure / R[j],
+                                        u[j] * (2.0 / math.pi), tan_max)
+                kept[j - b0] = 1 if keep else 0
+            m = 0
+            for i in range(b1 - b0):  # their positions, contiguous
+                at[m] = b0 + i
+                m += kept[i]
+            for i in range(m):  # their inputs, contiguous
+                j = at[i]
+                inp[X_X * BLOCK + i] = d1 - r[j]
+                inp[X_CP * BLOCK + i] = cos_phi[j]
+                inp[X_SP * BLOCK + i] = sin_phi[j]
+                inp[X_R * BLOCK + i] = R[j]
+                inp[X_U * BLOCK + i] = u[j]
+            for i in range(m):
+                values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
+        for i in range(m):
+            g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
+            F0 += g0
+            F1 += g1
+            F2 += g2
+            P00 += g0 * g0
+            P11 += g1 * g1
+            P22 += g2 * g2
+            P01 += g0 * g1
+            P02 += g0 * g2
+            P12 += g1 * g2
+            T0 += vals[V_T * BLOCK + i]
+            T1 += vals[(V_T + 1) * BLOCK + i]
+            T2 += vals[(V_T + 2) * BLOCK + i]
+            T3 += vals[(V_T + 3) * BLOCK + i]
+            T4 += vals[(V_T + 4) * BLOCK + i]
+            T5 += vals[(V_T + 5) * BLOCK + i]
+            T6 += vals[(V_T + 6) * BLOCK + i]
+            T7 += vals[(V_T + 7) * BLOCK + i]
+            T8 += vals[(V_T + 8) * BLOCK + i]
+            n_c += vals[V_NC * BLOCK + i]
+            n_s += vals[V_NS * BLOCK + i]
+            n_p += vals[V_NP * BLOCK + i]
+            th_sum += vals[V_TH * BLOCK + i]
+    row = partial[ic]
+    row[I_F], row[I_F + 1], row[I_F + 2] = F0, F1, F2
+    row[I_FF], row[I_FF + 1], row[I_FF + 2], row[I_FF + 3], row[I_FF + 4], row[I_FF + 5] = P00, P11, P22, P01, P02, P12
+    row[I_T], row[I_T + 1], row[I_T + 2], row[I_T + 3], row[I_T + 4] = T0, T1, T2, T3, T4
+    row[I_T + 5], row[I_T + 6], row[I_T + 7], row[I_T + 8] = T5, T6, T7, T8
+    row[I_NC], row[I_NS], row[I_NP], row[I_TH] = n_c, n_s, n_p, th_sum
+
+
+def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, tan_max,
+                partial):
+    """Row ic of ``partial`` under policy birth: frozen angles where a committed contact lasts, scalar libm loop."""
+    acc = np.zeros(N_ACC)
+    for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+        cp, sp = cos_phi[j], sin_phi[j]
+        x = d1 - r[j]
+        if cannot_touch(x, cp * d2 + sp * d3, tan_max):
+            continue
+        th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, True)
+        ct, st = math.cos(th), math.sin(th)
+        dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
+        if dn <= 0.0:
+            continue
+        accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1)
+        acc[I_TH] += th
+    partial[ic, :] = acc
+
+
+def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, has_birth,
+              tan_max, partial):
+    """Row ic of ``partial`` for a path-independent law, by policy."""
+    if has_birth:
+        chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                    tan_max, partial)
+    else:
+        chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial)
+
+
+def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial):
+    """Partial sums of a path-independent law over the first n_active asperities, chunks in parallel.
+
+    Chunks go to the threads in the strided order of :func:`chunk_stride`, so both threads
+    get low (in contact, costly) and high (cheap) heights; rows are overwritten.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    stride = chunk_stride(n_chunks)
+    for kk in numba.prange(n_chunks):
+        chunk_any((kk * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts,
+                  theta_birth, has_birth, tan_max, partial)
+
+
+def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, beta, theta_birth, n, scale, partial,
+                  out):
+    """The flat result (:func:`finish`) at every row of ``deltas`` (m, 3), on the calling thread.
+
+    The same rows of partial sums as :func:`bounds` + ``reduce_parallel`` + :func:`finish`, so
+    the same bits.  For small workloads: a parallel region costs tens of microseconds on an
+    idle machine and milliseconds on a loaded one, and the increments of a
+    displacement-controlled stage of a path-independent law are independent, so a small
+    population need not pay a round trip through Python for each of them.
+    """
+    has_birth = theta_birth.size > 0
+    for i in range(deltas.shape[0]):
+        d1, d2, d3 = deltas[i, 0], deltas[i, 1], deltas[i, 2]
+        n_active, tan_max = bounds(r, R_min, r_o, k_e, beta, deltas[i], theta_birth)
+        closure, dc = closure_and_slope(r_o, d1)
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for ic in range(n_chunks):
+            chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                      has_birth, tan_max, partial)
+        finish(partial, n_chunks, n, scale, out[i])
+        out[i, O_NA] = n_active
+
+
+def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_birth, delta_n_out, theta_out,
+                   force_out, state_out):
+    """Per-asperity overlap, orientation, global force and state code of a path-independent law."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure = max(r_o + d1, 0.0)
+    has_birth = theta_birth.size > 0
+    for j in numba.prange(r.size):
+        cp, sp = cos_phi[j], sin_phi[j]
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, has_birth)
+        ct, st = math.cos(th), math.sin(th)
+        dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+        delta_n_out[j] = dn
+        theta_out[j] = th
+        f_n = f_s = f_t = 0.0
+        code = 0
+        if dn > 0.0:
+            out = local(dn, ds, dt, R[j], consts)
+            f_n, f_s, f_t, code = out[0], out[1], out[2], int(out[12])
+        force_out[j, 0] = f_n * ct - f_s * st
+        force_out[j, 1] = f_n * st * cp + f_s * ct * cp - f_t * sp
+        force_out[j, 2] = f_n * st * sp + f_s * ct * sp + f_t * cp
+        state_out[j] = code
+
+
+# ---- history laws: committed contacts live in slots (asp[sl] = asperity index, -1 a free slot) ----
+
+def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
+              theta_birth, partial):
+    """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only)."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
-    k = w.shape[1]
-    no_write = np.empty((0, 2))
-    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    n_chunks = (n_slots + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_ACC)
-        J = np.zeros((3, 3))
-        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+        for sl in range(ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)):
+            j = asp[sl]
+            if j < 0:
+                continue
             cp, sp = cos_phi[j], sin_phi[j]
-            inv_R = 1.0 / R[j]
-            th, th1 = contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+            th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
             ct, st = math.cos(th), math.sin(th)
             dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
             if dn <= 0.0:
                 continue
             rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
-            sl, n_hist, h, dn_c = mdr_history(j, slot, w, h_slot, dn_c_slot, r, R, u, inv_R, cp, sp,
-                                              delta_c, r_o, k_e, dn_cap, k)
-            w_c = w[sl] if sl >= 0 else w[0]
-            f_n, f_s, f_t, _, _, state, _, _, _ = mdr_springs(
-                dn, dds, ddt, dn_c, w_c, n_hist, h, R[j], E_star, lam, mu, J, no_write)
-            accumulate(acc, ct, st, cp, sp, f_n, f_s, f_t, J, ds, rho, th1, state)
-            acc[20] += th
+            accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False), ds,
+                       rho, th1)
+            acc[I_TH] += th
         partial[ic, :] = acc
+
+
+def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
+               partial):
+    """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
+
+    They take their follow angle (SPEC §3) and start from no history; committed contacts are
+    skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    stride = chunk_stride(n_chunks)
+    for kk in numba.prange(n_chunks):
+        ic = (kk * stride) % n_chunks
+        acc = np.zeros(N_ACC)
+        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+            if flag[j]:
+                continue
+            cp, sp = cos_phi[j], sin_phi[j]
+            x = d1 - r[j]
+            inv_R = 1.0 / R[j]
+            if not may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure * inv_R, u[j] * (2.0 / math.pi),
+                                    tan_max):
+                continue
+            th, th1 = asperity_theta(u[j], inv_R, closure, k_e, dc)
+            ct, st = math.cos(th), math.sin(th)
+            dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
+            if dn <= 0.0:
+                continue
+            dn_c = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
+            dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
+            rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+            accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c, dn_ref, R[j], consts, arrays, 0, True), ds, rho,
+                       th1)
+            acc[I_TH] += th
+        partial[ic, :] = acc
+
+
+def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
+                 theta_birth, n_store, partial):
+    """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
+
+    A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    n_chunks = (n_slots + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        acc = np.zeros(N_COMMIT)
+        scratch = np.zeros((2 * n_store, 2))
+        for sl in range(ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)):
+            j = asp[sl]
+            if j < 0:
+                continue
+            cp, sp = cos_phi[j], sin_phi[j]
+            th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+            ct, st = math.cos(th), math.sin(th)
+            dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+            _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+            new, work, stored, diss, events = commit_law(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False,
+                                                         scratch)
+            acc[C_WORK] += work
+            acc[C_STORED] += stored
+            acc[C_DISS] += diss
+            acc[C_EVENTS] += events
+            acc[C_TR + 4 * code[sl] + new] += 1.0
+            if dn <= 0.0:
+                asp[sl] = -1
+                flag[j] = 0
+                dn_c[sl] = 0.0
+                code[sl] = 0
+            else:
+                dn_c[sl] = dn
+                code[sl] = new
+        partial[ic, :] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts):
+    """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, _ = closure_and_slope(r_o, d1)
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        c = 0
+        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+            if flag[j]:
+                continue
+            cp, sp = cos_phi[j], sin_phi[j]
+            x = d1 - r[j]
+            inv_R = 1.0 / R[j]
+            if not may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure * inv_R, u[j] * (2.0 / math.pi),
+                                    tan_max):
+                continue
+            th, _ = asperity_theta(u[j], inv_R, closure, k_e, 0.0)
+            dn, _, _ = local_displacement(x, d2, d3, math.cos(th), math.sin(th), cp, sp)
+            if dn > 0.0:
+                flag[j] = 2
+                c += 1
+        counts[ic] = c
+
+
+def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts,
+                 arrays, n_store, partial):
+    """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order)."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, _ = closure_and_slope(r_o, d1)
+    m = new_slots.size
+    n_chunks = (m + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        acc = np.zeros(N_COMMIT)
+        scratch = np.zeros((2 * n_store, 2))
+        for ii in range(ic * CHUNK, min(m, (ic + 1) * CHUNK)):
+            sl = new_slots[ii]
+            j = asp[sl]
+            cp, sp = cos_phi[j], sin_phi[j]
+            inv_R = 1.0 / R[j]
+            th, _ = asperity_theta(u[j], inv_R, closure, k_e, 0.0)
+            ct, st = math.cos(th), math.sin(th)
+            dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+            dnc = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
+            dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
+            _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+            new, work, stored, diss, events = commit_law(dn, dds, ddt, dnc, dn_ref, R[j], consts, arrays, sl, True,
+                                                         scratch)
+            acc[C_WORK] += work
+            acc[C_STORED] += stored
+            acc[C_DISS] += diss
+            acc[C_EVENTS] += events
+            acc[C_TR + new] += 1.0
+            dn_c[sl] = dn
+            code[sl] = new
+        partial[ic, :] = acc
+
+
+def snapshot_slots(slot_of, dn_c, code, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, arrays, theta_birth,
+                   delta_n_out, theta_out, force_out, state_out):
+    """Per-asperity overlap, angle, global force of the committed springs and state code (call right after commit)."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    for j in numba.prange(r.size):
+        cp, sp = cos_phi[j], sin_phi[j]
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+        ct, st = math.cos(th), math.sin(th)
+        dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+        delta_n_out[j] = dn
+        theta_out[j] = th
+        sl = slot_of[j]
+        f_n = f_s = f_t = 0.0
+        c = 0
+        if sl >= 0 and dn > 0.0:  # the committed springs: a trial with no increment
+            out = trial(dn, 0.0, 0.0, dn_c[sl], 0.0, R[j], consts, arrays, sl, False)
+            f_n, f_s, f_t, c = out[0], out[1], out[2], code[sl]
+        force_out[j, 0] = f_n * ct - f_s * st
+        force_out[j, 1] = f_n * st * cp + f_s * ct * cp - f_t * sp
+        force_out[j, 2] = f_n * st * sp + f_s * ct * sp + f_t * cp
+        state_out[j] = c
+
+
+# layout of one row of commit sums: work, stored energy, dissipation, law events, transitions (4 x 4)
+C_WORK, C_STORED, C_DISS, C_EVENTS, C_TR = 0, 1, 2, 3, 4
+N_COMMIT = 4 + 16
+
+_PATH_INDEPENDENT = {"values_follow": dict(cache=True, inline="always", error_model="numpy"),
+                     "chunk_follow": dict(cache=True, error_model="numpy"),
+                     "chunk_birth": dict(cache=True, inline="always"),
+                     "chunk_any": dict(cache=True, inline="always"),
+                     "reduce_parallel": dict(cache=True, parallel=True),
+                     "reduce_serial": dict(cache=True),
+                     "snapshot_local": dict(cache=True, parallel=True)}
+_HISTORY = {"slot_pass": dict(cache=True, parallel=True),
+            "fresh_pass": dict(cache=True, parallel=True),
+            "commit_slots": dict(cache=True, parallel=True),
+            "commit_fresh": dict(cache=True, parallel=True),
+            "snapshot_slots": dict(cache=True, parallel=True)}
+
+
+@functools.lru_cache(maxsize=None)
+def _kernels_of(law: laws.Law) -> dict:
+    templates = _PATH_INDEPENDENT if law.path_independent else _HISTORY
+    g = globals()
+    bindings = ({"local": law.local} if law.path_independent
+                else {"trial": law.history.trial, "commit_law": law.history.commit})
+    return laws.specialise({name: g[name] for name in templates}, law, bindings, templates)
+
+
+def kernels(law) -> dict:
+    """The generic kernels compiled for ``law`` (name -> numba dispatcher), built once per law."""
+    return _kernels_of(laws.get(law))
 
 
 @numba.njit(cache=True, parallel=True)
@@ -680,14 +757,43 @@ def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_bir
             theta_birth[j] = np.nan
 
 
+@numba.njit(cache=True)
+def assign_slots(flag, counts, asp, n_slots, new_slots):
+    """Give each asperity flagged 2 (a new contact) a slot, lowest free slot first, in asperity order.
+
+    Returns the new number of slots in use (free slots have asp = -1); ``new_slots`` receives
+    the slots given, in order.  Only chunks with a count are scanned.
+    """
+    free = 0
+    m = 0
+    for ic in range(counts.size):
+        if counts[ic] == 0:
+            continue
+        for j in range(ic * CHUNK, min(flag.size, (ic + 1) * CHUNK)):
+            if flag[j] != 2:
+                continue
+            while free < n_slots and asp[free] >= 0:
+                free += 1
+            sl = free
+            if sl == n_slots:
+                n_slots += 1
+            asp[sl] = j
+            flag[j] = 1
+            new_slots[m] = sl
+            m += 1
+            free += 1
+    return n_slots
+
+
 @dataclass(frozen=True)
 class Evaluation:
     """Interface response at one displacement (SPEC §6).
 
     stress (3,) [Pa], stderr (3,) [Pa] (Monte Carlo standard error of each component),
-    covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3) [Pa/m] (d sigma_i / d Delta_k), n_contact and n_slip (asperity counts),
+    covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3)
+    [Pa/m] (d sigma_i / d Delta_k), n_contact, n_slip and n_partial (asperity counts),
     mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
-    that could touch and were visited).
+    below the height bound, the most that can touch).
     """
 
     delta: np.ndarray
@@ -717,71 +823,89 @@ def check_choice(name, value, valid):
 
 
 class Workspace:
-    """Preallocated partial-sum buffer for one population (a Newton iteration allocates nothing)."""
+    """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing)."""
 
     def __init__(self, n):
         self.partial = np.zeros(((n + CHUNK - 1) // CHUNK, N_ACC))
+
+    def rows(self, m):
+        """At least m rows of partial sums (grown when a history law has more slot chunks)."""
+        if self.partial.shape[0] < m:
+            self.partial = np.zeros((m, N_ACC))
+        return self.partial
 
 
 _EMPTY = np.empty(0)
 
 
-def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None,
-             history=None) -> Evaluation:
+def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None, state=None) -> Evaluation:
     """Evaluate Eq. (23) and its tangent over a population at interface displacement delta [m].
 
-    Under policy ``birth`` the committed birth angles ``theta_birth`` (NaN where not in
-    contact) are used; without them every contact is born now, which equals ``follow``.
-    Law ``mdr`` reads the committed springs of ``history`` (a :class:`~asperity_sim.state.MDRHistory`;
-    default: a virgin interface at Delta = 0) and never changes them.
+    ``law`` a registered law name (:mod:`asperity_sim.laws`).  ``state`` (a
+    :class:`~asperity_sim.state.ContactState`) holds the committed per-contact state: the
+    springs of a history law and the birth angles of policy birth; it is read, never written.
+    Without it: a virgin interface at Delta = 0 (every contact born now).  Under policy
+    birth ``theta_birth`` (n,) may give the frozen angles directly (NaN where none).
     """
     if not isinstance(pop, Population):
         raise ValueError(f"pop = {pop!r} is not a Population")
     d = check_delta(delta)
-    check_choice("law", law, LAWS)
+    lw = laws.get(law)
     check_choice("policy", policy, POLICIES)
     if workspace is not None and (not isinstance(workspace, Workspace)
                                   or workspace.partial.shape[0] * CHUNK < pop.n):
         raise ValueError(f"workspace = {workspace!r} is not a Workspace for {pop.n} asperities (use Workspace(pop.n))")
-    tb = None
+    if state is None:
+        from .state import ContactState
+
+        state = ContactState(pop, lw, policy)
+    elif state.law is not lw or state.pop is not pop:
+        raise ValueError(f"state belongs to law {state.law.name!r} on another population; this is law {lw.name!r}")
     if policy == "birth" and theta_birth is not None:
         tb = np.asarray(theta_birth, dtype=float)
         if tb.shape != (pop.n,):
             raise ValueError(f"theta_birth has shape {tb.shape}, expected ({pop.n},)")
+        state.theta_birth = tb
     ws = workspace if workspace is not None else Workspace(pop.n)
-    return evaluate_unchecked(pop, d, law, tb, ws, history)
+    return evaluate_unchecked(pop, d, state, ws)
 
 
-def evaluate_unchecked(pop, d, law, theta_birth, workspace, history) -> Evaluation:
+def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
     """:func:`evaluate` on arguments already checked (for a solver that calls it many times).
 
-    ``d`` a finite float array (3,), ``law`` valid, ``theta_birth`` None (every contact born
-    now) or a float array (n,), ``workspace`` a :class:`Workspace` for ``pop``.
+    ``d`` a finite float array (3,), ``state`` a :class:`~asperity_sim.state.ContactState`
+    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.
     """
-    tb = _EMPTY if theta_birth is None else theta_birth
+    law = state.law
+    tb = _EMPTY if state.theta_birth is None else state.theta_birth
     out = np.empty(N_OUT)
-    r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
-    serial = law == "paper" and pop.n <= SERIAL_CHUNKS * CHUNK  # then n_active is small too: no bounds needed here
-    if not serial:
-        n_active, tan_max = paper_bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
-        serial = law == "paper" and n_active <= SERIAL_CHUNKS * CHUNK
-    if serial:  # the serial kernel finds its own bounds
-        assemble_paper_serial(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
-                              E_star, lam, mu, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
-        return evaluation_from(d, out)
-    if law == "paper":
-        assemble_paper(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, E_star, lam, mu, tb,
-                       tan_max, workspace.partial)
+    r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
+    kern = kernels(law)
+    if law.path_independent:
+        # a population that fits the serial kernel: it finds its own bounds
+        serial = pop.n <= SERIAL_CHUNKS * CHUNK
+        if not serial:
+            n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+            serial = n_active <= SERIAL_CHUNKS * CHUNK
+        if serial:
+            kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
+                                  state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
+            return evaluation_from(d, out)
+        kern["reduce_parallel"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, state.consts,
+                                tb, tan_max, workspace.partial)
+        n_rows = (n_active + CHUNK - 1) // CHUNK
     else:
-        if history is None:
-            from .state import MDRHistory
-
-            history = MDRHistory.virgin(pop, dn_cap=max(d[0], beta))
-        hs = history
-        assemble_mdr(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, hs.delta_c,
-                     r_o, k_e, E_star, lam, mu, tb, hs.slot, hs.w, hs.h, hs.dn_c, hs.dn_cap,
-                     workspace.partial)
-    finish(workspace.partial, (n_active + CHUNK - 1) // CHUNK, pop.n, scale, out)
+        n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, _EMPTY)
+        n_pop = (n_active + CHUNK - 1) // CHUNK
+        n_slot = (state.n_slots + CHUNK - 1) // CHUNK
+        partial = workspace.rows(n_pop + n_slot)
+        kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
+                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial)
+        if n_slot:
+            kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
+                              state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:])
+        n_rows = n_pop + n_slot
+    finish(workspace.partial, n_rows, pop.n, scale, out)
     out[O_NA] = n_active
     return evaluation_from(d, out)
 
@@ -791,19 +915,19 @@ def _row(d):
     return np.ascontiguousarray(d).reshape(1, 3)
 
 
-def evaluate_steps(pop, deltas, workspace) -> np.ndarray:
-    """Flat results (m, N_OUT) of the ``paper`` law under policy follow at each row of ``deltas`` (m, 3) [m].
+def evaluate_steps(pop, deltas, workspace, law="paper") -> np.ndarray:
+    """Flat results (m, N_OUT) of a path-independent law under policy follow at each row of ``deltas`` (m, 3) [m].
 
-    One call of the serial kernel (:func:`assemble_paper_serial`) for all rows, each
-    bit-identical to :func:`evaluate` there; meant for small populations, where the per-call
-    overhead of :func:`evaluate` exceeds the kernel time.  Read a row with
-    :func:`evaluation_from`.  ``deltas`` finite and C-contiguous, ``workspace`` a
-    :class:`Workspace` for ``pop``.
+    One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
+    meant for small populations, where the per-call overhead of :func:`evaluate` exceeds the
+    kernel time.  Read a row with :func:`evaluation_from`.  ``deltas`` finite and
+    C-contiguous, ``workspace`` a :class:`Workspace` for ``pop``.
     """
-    r_o, k_e, E_star, lam, mu, beta, scale = pop.kernel_constants
+    lw = laws.get(law)
+    r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
-    assemble_paper_serial(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e, E_star, lam,
-                          mu, beta, _EMPTY, pop.n, scale, workspace.partial, out)
+    kernels(lw)["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e,
+                                 lw.constants(pop.params, None), beta, _EMPTY, pop.n, scale, workspace.partial, out)
     return out
 
 
@@ -828,47 +952,14 @@ def sqrt_nonneg(x: float) -> float:
     return math.sqrt(x) if x > 0.0 or x != x else 0.0
 
 
-@numba.njit(cache=True, parallel=True)
-def asperity_snapshot(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, E_star, lam, mu, theta_birth,
-                      delta_n_out, theta_out, force_out, state_out):
-    """Per-asperity overlap, orientation, global force and state code (0 out, 1 stick, 2 partial, 3 slip)."""
-    d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure = max(r_o + d1, 0.0)
-    has_birth = theta_birth.size > 0
-    for j in numba.prange(r.size):
-        cp, sp = cos_phi[j], sin_phi[j]
-        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, has_birth)
-        ct, st = math.cos(th), math.sin(th)
-        dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
-        delta_n_out[j] = dn
-        theta_out[j] = th
-        if dn <= 0.0:
-            force_out[j, 0] = 0.0
-            force_out[j, 1] = 0.0
-            force_out[j, 2] = 0.0
-            state_out[j] = 0
-            continue
-        f_n, f_s, f_t, _, _, _, _, slip = paper_local(dn, ds, dt, math.sqrt(R[j]), E_star, lam, mu)
-        force_out[j, 0] = f_n * ct - f_s * st
-        force_out[j, 1] = f_n * st * cp + f_s * ct * cp - f_t * sp
-        force_out[j, 2] = f_n * st * sp + f_s * ct * sp + f_t * cp
-        if slip:
-            state_out[j] = 3
-        elif ds == 0.0 and dt == 0.0:
-            state_out[j] = 1
-        else:
-            state_out[j] = 2
-
-
-def snapshot(pop, delta, policy="follow", theta_birth=None):
-    """Per-asperity arrays at delta: dict of delta_n [m], theta [rad], force (n, 3) [N], state code."""
+def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
+    """Per-asperity arrays at delta of a path-independent law: delta_n [m], theta [rad], force (n, 3) [N], state."""
     d = check_delta(delta)
-    p = pop.params
+    lw = laws.get(law)
     tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else _EMPTY
-    out = {
-        "delta_n": np.empty(pop.n), "theta": np.empty(pop.n),
-        "force": np.empty((pop.n, 3)), "state": np.empty(pop.n, dtype=np.int8),
-    }
-    asperity_snapshot(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, p.E_star, p.lam, p.mu,
-                      tb, out["delta_n"], out["theta"], out["force"], out["state"])
+    out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
+           "state": np.empty(pop.n, dtype=np.int8)}
+    kernels(lw)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
+                                  lw.constants(pop.params, None), tb, out["delta_n"], out["theta"], out["force"],
+                                  out["state"])
     return out

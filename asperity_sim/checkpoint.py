@@ -7,8 +7,8 @@ as if it had never stopped, so a resumed run is bit-identical to an uninterrupte
   solver settings, snapshot request) and the package version and checkpoint format;
 - the population arrays (r, R, u, cos phi, sin phi), not only its seed: a population drawn
   with ``seed=None`` or passed in by the caller cannot be drawn again;
-- the committed per-contact history: ``MDRHistory`` arrays (law ``mdr``) and the birth angles
-  (policy ``birth``);
+- the committed per-contact state (:class:`~asperity_sim.state.ContactState`: slots and law
+  arrays of a history law, birth angles under policy ``birth``);
 - the recorder buffers (every converged increment so far), the snapshots taken, the running
   energy sums, the last converged evaluation (stress, covariance, tangent, counts: the
   predictor of the next increment reads them) and the position of the loop (stage, fraction
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-FORMAT = 1
+FORMAT = 2
 SUFFIX = ".npz"
 
 
@@ -48,7 +48,7 @@ class CheckpointError(ValueError):
     """A checkpoint cannot be used: unreadable, another version or format, or another run."""
 
 
-def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snapshots):
+def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snapshots, spring_dtype="float64"):
     """The run's identity as JSON-able values; a checkpoint continues only the same configuration."""
     snaps = sorted(snapshots[0]) if not snapshots[1] else "stage_ends"
     return {
@@ -58,7 +58,8 @@ def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snaps
         "sampler": sampler,
         "law": law,
         "policy": policy,
-        "k": int(k) if law == "mdr" else None,
+        "k": int(k) if _has_history(law) else None,
+        "spring_dtype": spring_dtype if _has_history(law) else None,
         "path": {"name": path.name,
                  "stages": [{"control": list(s.control), "target": [float(t) for t in s.target],
                              "increments": s.increments, "adaptive": s.adaptive,
@@ -66,6 +67,12 @@ def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snaps
         "settings": dataclasses.asdict(settings),
         "snapshots": snaps,
     }
+
+
+def _has_history(law) -> bool:
+    from . import laws
+
+    return laws.get(law).history is not None
 
 
 def differences(saved: dict, wanted: dict, prefix="") -> list[str]:

@@ -30,16 +30,18 @@ import numpy as np
 
 from . import __version__
 from . import checkpoint as ckpt
-from .assemble import (CHUNK, LAWS, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, POLICIES, SERIAL_CHUNKS,
-                       Evaluation, Workspace, birth_angles, check_choice, check_delta, evaluate, evaluate_steps,
-                       evaluate_unchecked, evaluation_from, snapshot, sqrt_nonneg)
+from . import laws
+from .assemble import (CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, POLICIES, SERIAL_CHUNKS, Evaluation,
+                       Workspace, check_choice, check_delta, evaluate_steps, evaluate_unchecked, evaluation_from,
+                       sqrt_nonneg)
 from .params import InterfaceParams, check_real
 from .paths import LoadPath, Stage
 from .population import N_MAX, SAMPLERS, Population
 from .recorder import Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
-from .state import MDRHistory
-from .variables import HISTORY_VARIABLES, STEP_VARIABLES
+from .domain import DomainMonitor, LawDomainWarning
+from .state import SPRING_DTYPES, ContactState
+from .variables import DOMAIN_VARIABLES, HISTORY_VARIABLES, STEP_VARIABLES, Var
 
 
 BATCH = 64  # displacement-controlled increments per kernel call (the wall-time limit is checked between calls)
@@ -75,7 +77,7 @@ def _theta_am(params, closure):
 
 def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
              sampler: str = "random", law: str = "paper", policy: str = "follow", *, k: int = 16,
-             snapshots=None, output=None, settings: SolverSettings | None = None,
+             spring_dtype: str = "float64", snapshots=None, output=None, settings: SolverSettings | None = None,
              population: Population | None = None, progress=None, max_wall_time: float | None = None,
              checkpoint=None, checkpoint_every: int | None = None, resume=None):
     """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
@@ -86,9 +88,11 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     path : LoadPath
     n : int, number of sampled asperities, in [1, 2**31 - 1]
     seed : int >= 0 or None; sampler : "random" or "sobol"
-    law : "paper" (path independent, SPEC §5) or "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
+    law : a registered law (:mod:`asperity_sim.laws`): "paper" (path independent, SPEC §5) or
+        "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
     policy : "follow" or "birth" (SPEC §3)
-    k : int in [1, 4096], tangential springs per contact (law "mdr")
+    k : int in [1, 4096], springs a contact has at least at its largest extent (history laws)
+    spring_dtype : "float64" or "float32", storage of the springs (history laws)
     snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
     output : path of a netCDF file to write (atomically), also when the run fails
     settings : SolverSettings
@@ -120,8 +124,9 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         raise ValueError(f"params = {params!r} is not an InterfaceParams")
     if not isinstance(path, LoadPath):
         raise ValueError(f"path = {path!r} is not a LoadPath (see asperity_sim.paths)")
-    check_choice("law", law, LAWS)
+    law = laws.get(law).name
     check_choice("policy", policy, POLICIES)
+    check_choice("spring_dtype", spring_dtype, SPRING_DTYPES)
     check_choice("sampler", sampler, SAMPLERS)
     n = _check_int("n", n, 1, N_MAX)
     if seed is not None:
@@ -152,12 +157,12 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         if population is not None:
             n, seed, sampler = population.n, population.seed, population.sampler
         wanted = ckpt.config_of(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k,
-                                settings=settings, snapshots=snaps)
+                                spring_dtype=spring_dtype, settings=settings, snapshots=snaps)
         diff = ckpt.differences(loaded[0]["config"], wanted)
         if diff:
             raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} belongs to another run: " + "; ".join(diff))
-    run = _Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, snaps=snaps,
-               settings=settings, population=population, loaded=loaded, resume=resume)
+    run = _Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
+               snaps=snaps, settings=settings, population=population, loaded=loaded, resume=resume)
     return run.go(output=output, progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint,
                   checkpoint_every=checkpoint_every)
 
@@ -187,7 +192,8 @@ def resume(checkpoint, *, output=None, progress=None, max_wall_time: float | Non
     snapshots = cfg["snapshots"] if cfg["snapshots"] != [] else None
     every = meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
     return simulate(params, path, n=cfg["n"], seed=cfg["seed"], sampler=cfg["sampler"], law=cfg["law"],
-                    policy=cfg["policy"], k=cfg["k"] or 16, snapshots=snapshots, settings=settings, output=output,
+                    policy=cfg["policy"], k=cfg["k"] or 16, spring_dtype=cfg.get("spring_dtype") or "float64",
+                    snapshots=snapshots, settings=settings, output=output,
                     progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every,
                     resume=_Loaded(checkpoint, meta, arrays))
 
@@ -222,9 +228,10 @@ class _Position:
 class _Run:
     """The state of one run: population, committed history, recorder, loop position."""
 
-    def __init__(self, params, path, *, n, seed, sampler, law, policy, k, snaps, settings, population, loaded,
-                 resume):
-        self.params, self.path, self.law, self.policy, self.settings = params, path, law, policy, settings
+    def __init__(self, params, path, *, n, seed, sampler, law, policy, k, spring_dtype, snaps, settings, population,
+                 loaded, resume):
+        self.params, self.path, self.policy, self.settings = params, path, policy, settings
+        self.law = laws.get(law)
         self.snap_steps, self.snap_stage_ends = snaps
         self.resumed_from = None
         self.config = None
@@ -241,31 +248,37 @@ class _Run:
             pop = Population.sample(params, n, seed=seed, sampler=sampler)
         self.pop = pop
         self.config = ckpt.config_of(params, path, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law,
-                                     policy=policy, k=k, settings=settings, snapshots=snaps)
+                                     policy=policy, k=k, spring_dtype=spring_dtype, settings=settings,
+                                     snapshots=snaps)
         self.ws = Workspace(pop.n)
         self.length = length_scale(params, path)
         total = sum(s.increments for s in path.stages)
-        self.variables = STEP_VARIABLES if law != "mdr" else {**STEP_VARIABLES, **HISTORY_VARIABLES}
+        self.variables = {**STEP_VARIABLES, **history_variables(self.law)}
+        self.domain = DomainMonitor() if self.law.path_independent else None
+        if self.domain is not None:
+            self.variables.update(DOMAIN_VARIABLES)
         self.rec = Recorder(total + 1, self.variables)
         self.wall_before = 0.0
+        self.state = ContactState(pop, self.law, policy, k=k, spring_dtype=spring_dtype)
         if loaded is None:
-            self._fresh(k)
+            self._fresh()
         else:
             self._restore(*loaded, resume)
 
     # -- set-up ---------------------------------------------------------------------------------
 
-    def _fresh(self, k):
-        pop, params, path = self.pop, self.params, self.path
+    def _fresh(self):
+        pop, params, path, law = self.pop, self.params, self.path, self.law
         call = (f"asperity_sim.simulate(path={path.name}, n={pop.n}, seed={pop.seed}, sampler={pop.sampler!r}, "
-                f"law={self.law!r}, policy={self.policy!r})")
-        self.attrs = run_attributes(params, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=self.law,
+                f"law={law.name!r}, policy={self.policy!r})")
+        self.attrs = run_attributes(params, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law.name,
                                     policy=self.policy, path=path, version=__version__, call=call)
-        self.theta_birth = np.full(pop.n, np.nan) if self.policy == "birth" else None
-        self.history = (MDRHistory(pop, k=k, dn_cap=_closure_cap(pop, path, self.ws))
-                        if self.law == "mdr" else None)
-        if self.history is not None:
-            self.attrs["springs_per_contact"] = self.history.k
+        self.attrs["law_summary"] = law.summary
+        self.attrs["law_domain"] = law.domain
+        if law.history is not None:
+            self.attrs["springs_per_contact"] = self.state.k
+            self.attrs["springs_stored_per_contact"] = self.state.n_stored
+            self.attrs["spring_dtype"] = self.state.spring_dtype
         _stderr_attrs(self.attrs, pop.n)
         self.attrs["increments_at_resolution"] = 0  # residual above rtol, accepted at the resolution of Delta
         self.attrs["increments_at_resolution_note"] = (
@@ -273,11 +286,11 @@ class _Run:
             "Delta); accepted at the floating-point resolution of Delta, their residual is recorded")
         self.delta = np.zeros(3)
         self.ev = self.evaluate_at(self.delta)
-        self.energy = {"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, "coarsenings": 0,
-                       "transitions": np.zeros((4, 4), dtype=np.int64)} if self.history is not None else {}
+        self.energy = ({"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, self.law.history.events: 0,
+                        "transitions": np.zeros((4, 4), dtype=np.int64)} if self.law.history is not None else {})
         self.pos = _Position()
         _record(self.rec, params, self.ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0,
-                cutbacks=0, **self.energy)
+                cutbacks=0, **self.energy, **self.domain_flags(0, self.ev.delta, self.ev.stress))
         if 0 in self.snap_steps:
             self.take_snapshot(0)
 
@@ -286,10 +299,7 @@ class _Run:
         try:
             self.attrs = dict(meta["attrs"])
             self.wall_before = float(meta.get("wall_time_s", 0.0))
-            self.theta_birth = arrays["theta_birth"].copy() if self.policy == "birth" else None
-            self.history = (MDRHistory.from_state_arrays(pop, {k[5:]: v for k, v in arrays.items()
-                                                               if k.startswith("hist_")})
-                            if self.law == "mdr" else None)
+            self.state.restore({k[6:]: v for k, v in arrays.items() if k.startswith("state_")})
             self.delta = arrays["delta"].copy()
             ints = arrays["ev_ints"]
             self.ev = Evaluation(delta=arrays["ev_delta"].copy(), stress=arrays["ev_stress"].copy(),
@@ -297,10 +307,10 @@ class _Run:
                                  tangent=arrays["ev_tangent"].copy(), n_contact=int(ints[0]), n_slip=int(ints[1]),
                                  n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]),
                                  n_active=int(ints[3]))
-            if self.history is not None:
+            if self.law.history is not None:
                 ef = arrays["energy_f"]
                 self.energy = {"external_work": float(ef[0]), "elastic_energy": float(ef[1]),
-                               "dissipation": float(ef[2]), "coarsenings": int(arrays["energy_coarsenings"][0]),
+                               "dissipation": float(ef[2]), self.law.history.events: int(arrays["energy_events"][0]),
                                "transitions": arrays["energy_transitions"].copy()}
             else:
                 self.energy = {}
@@ -315,6 +325,8 @@ class _Run:
             size = int(meta["steps_recorded"])
             for i in range(size):
                 self.rec.append(**{name: arrays[f"rec_{name}"][i] for name in self.variables})
+                if self.domain is not None:  # its state is a function of the recorded steps: replayed
+                    self.domain.step(i, arrays["rec_displacement"][i], arrays["rec_stress"][i])
             for i, step in enumerate(meta["snapshot_steps"]):
                 prefix = f"snap{i}_"
                 self.rec.add_snapshot(int(step), {key[len(prefix):]: v for key, v in arrays.items()
@@ -323,17 +335,35 @@ class _Run:
             raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} is incomplete or damaged ({err})") from err
         self.resumed_from = (os.fspath(resume), self.rec.size - 1)
 
+    # -- the law's domain (path-independent laws) -------------------------------------------------
+
+    def domain_flags(self, step, delta, stress) -> dict:
+        """{"law_domain": flags} of a recorded step (empty for history laws); warns at the first flag."""
+        if self.domain is None:
+            return {}
+        first = self.domain.first_step
+        flags = self.domain.step(step, delta, stress)
+        if flags and first < 0:
+            self.attrs["law_domain_first_step"] = step
+            self.attrs["law_domain_note"] = self.domain.message(self.law.name, step)
+            warnings.warn(self.domain.message(self.law.name, step), LawDomainWarning, stacklevel=4)
+        return {"law_domain": flags}
+
+    def domain_flags_of(self, first_step, deltas, stresses) -> dict:
+        """:meth:`domain_flags` of consecutive recorded steps, as one column."""
+        if self.domain is None:
+            return {}
+        return {"law_domain": np.array([self.domain_flags(first_step + i, d, s)["law_domain"]
+                                        for i, (d, s) in enumerate(zip(deltas, stresses))], dtype="i1")}
+
     # -- evaluation, snapshots, checkpoints -----------------------------------------------------
 
     def evaluate_at(self, delta):
         # the run's own arguments were checked once; only the solver's delta is new
-        return evaluate_unchecked(self.pop, check_delta(delta), self.law, self.theta_birth, self.ws, self.history)
+        return evaluate_unchecked(self.pop, check_delta(delta), self.state, self.ws)
 
     def take_snapshot(self, step):
-        if self.history is None:
-            self.rec.add_snapshot(step, snapshot(self.pop, self.delta, self.policy, self.theta_birth))
-        else:
-            self.rec.add_snapshot(step, self.history.snapshot(self.delta, self.theta_birth))
+        self.rec.add_snapshot(step, self.state.snapshot(self.delta))
 
     def save_checkpoint(self, target, every, wall):
         pop, ev, pos = self.pop, self.ev, self.pos
@@ -347,13 +377,11 @@ class _Run:
                   "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
                   "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress,
                   "pos_prev": np.concatenate([[pos.prev_s], pos.prev_delta, pos.prev_slope])}
-        if self.theta_birth is not None:
-            arrays["theta_birth"] = self.theta_birth
-        if self.history is not None:
-            arrays.update({f"hist_{k}": v for k, v in self.history.state_arrays().items()})
+        arrays.update({f"state_{k}": v for k, v in self.state.state_arrays().items()})
+        if self.law.history is not None:
             arrays["energy_f"] = np.array([self.energy["external_work"], self.energy["elastic_energy"],
                                            self.energy["dissipation"]])
-            arrays["energy_coarsenings"] = np.array([self.energy["coarsenings"]], dtype=np.int64)
+            arrays["energy_events"] = np.array([self.energy[self.law.history.events]], dtype=np.int64)
             arrays["energy_transitions"] = np.asarray(self.energy["transitions"], dtype=np.int64)
         recorded = self.rec.to_dataset({})
         for name in self.variables:
@@ -396,7 +424,7 @@ class _Run:
         fractions = np.array([f for f, _ in plan])
         start = pos.start_delta
         deltas = start + fractions[:, None] * (end - start)  # the loop's targets, row by row
-        out = evaluate_steps(self.pop, deltas, self.ws)
+        out = evaluate_steps(self.pop, deltas, self.ws, self.law)
         finite = np.isfinite(out[:, :O_SE]).all(axis=1)  # stress, tangent, covariance (as the solver checks)
         m = len(plan) if finite.all() else int(np.argmin(finite))
         if m == 0:
@@ -406,12 +434,14 @@ class _Run:
                    tangent=out[:m, O_TANGENT:O_TANGENT + 9].reshape(m, 3, 3),
                    n_contact=out[:m, O_NC], n_slip=out[:m, O_NS], n_partial=out[:m, O_NP],
                    theta_am=[_theta_am(params, max(0.0, params.r_o + d1)) for d1 in deltas[:m, 0]],
-                   mean_theta=out[:m, O_TH], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0)
+                   mean_theta=out[:m, O_TH], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
+                   **self.domain_flags_of(rec.size, deltas[:m], out[:m, O_STRESS:O_STRESS + 3]))
         # the loop's position after the last of them (the point before it feeds the cubic predictor)
         before, s_before = (self.delta, pos.s) if m == 1 else (deltas[m - 2], plan[m - 2][0])
         s_last, ds_last = plan[m - 1]
         self.ev = evaluation_from(deltas[m - 1], out[m - 1])
         self.delta = deltas[m - 1].copy()
+        self.state.commit(self.delta)  # a path-independent law under policy follow: only delta_c moves
         pos.prev_s, pos.prev_delta, pos.prev_slope = s_before, before, (self.delta - before) / (s_last - s_before)
         pos.s, pos.ds = s_last, _next_ds(stage, ds_last, 0, 0, nominal, smallest)
         return True
@@ -449,7 +479,7 @@ class _Run:
                     pos.started = True
                 ramped = _ramped(free, pos.start_stress, end)  # stage constant
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
-                batches = (not free.any() and self.law == "paper" and self.theta_birth is None
+                batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
                            and self.pop.n <= SERIAL_CHUNKS * CHUNK and progress is None)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
@@ -474,6 +504,8 @@ class _Run:
                     slope = (guess - self.delta) / (s_new - s)  # d Delta / d s at s (free components)
                     if free.any() and not math.isnan(pos.prev_s):
                         guess = _cubic_predict(guess, self.delta, slope, pos, s, s_new, free)
+                    # fresh contacts get springs that fit their overlap at the stage's end point
+                    self.state.reference = np.where(free, self.delta, end)
                     result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
                     if not result.converged:
                         cuts += 1
@@ -487,19 +519,17 @@ class _Run:
                     pos.prev_s, pos.prev_delta, pos.prev_slope = s, self.delta, slope
                     ev = self.ev = result.evaluation
                     self.delta = delta = ev.delta.copy()
-                    if self.history is not None:  # commit the springs first: they were evaluated with the old angles
-                        c = self.history.commit(delta, ev.n_active, self.theta_birth)
+                    c = self.state.commit(delta, ev.n_active)
+                    if c is not None:
                         e = self.energy
                         self.energy = {"external_work": e["external_work"] + c.work, "elastic_energy": c.stored,
                                        "dissipation": e["dissipation"] + c.dissipation,
-                                       "coarsenings": c.coarsenings, "transitions": c.transitions}
-                    if self.theta_birth is not None:
-                        birth_angles(self.pop.r, self.pop.R, self.pop.u, self.pop.cos_phi, self.pop.sin_phi,
-                                     ev.n_active, delta, params.r_o, params.k_e, self.theta_birth)
+                                       self.law.history.events: c.events, "transitions": c.transitions}
                     if free.any():
                         pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, ramped))
                     _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
-                            residual=result.residual, cutbacks=cuts, **self.energy)
+                            residual=result.residual, cutbacks=cuts, **self.energy,
+                            **self.domain_flags(rec.size, ev.delta, ev.stress))
                     if result.residual > settings.rtol:  # accepted at the floating-point resolution of Delta
                         attrs["increments_at_resolution"] = attrs.get("increments_at_resolution", 0) + 1
                     step = rec.size - 1
@@ -674,32 +704,6 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
     )
 
 
-def _closure_cap(pop, path, ws):
-    """Largest closure Delta_1 [m] the path is expected to reach (sets the springs' spacing).
-
-    Displacement-controlled normal targets are read off the path; a normal stress target is
-    converted by bisection on the ``paper`` law at zero shear (the springs coarsen if a
-    contact grows beyond this estimate, so it need not be exact).
-    """
-    cap = pop.params.beta
-    for stage in path.stages:
-        if stage.control[0] == "displacement":
-            cap = max(cap, stage.target[0])
-            continue
-        target = stage.target[0]
-        lo, hi = 0.0, pop.params.beta
-        while evaluate(pop, [hi, 0.0, 0.0], workspace=ws).stress[0] < target and hi < 1e3:
-            lo, hi = hi, 2.0 * hi
-        for _ in range(40):
-            mid = 0.5 * (lo + hi)
-            if evaluate(pop, [mid, 0.0, 0.0], workspace=ws).stress[0] < target:
-                lo = mid
-            else:
-                hi = mid
-        cap = max(cap, hi)
-    return cap
-
-
 def _predict(ev, delta, target_delta, target_stress, free):
     """Tangent predictor for the free components from the last converged state."""
     guess = target_delta.copy()
@@ -835,3 +839,11 @@ def _check_snapshots(snapshots):
         if isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0:
             raise ValueError(f"snapshot step {s!r} is not valid (valid range: integer >= 0)")
     return {int(s) for s in steps}, False
+
+
+def history_variables(law) -> dict:
+    """Per-step outputs of a history law: energies, state transitions and the law's own event count."""
+    if law.history is None:
+        return {}
+    h = law.history
+    return {**HISTORY_VARIABLES, h.events: Var(("step",), "i8", "1", h.events_long_name)}

@@ -192,7 +192,7 @@ def plot_rotating_shear(runs: dict, turn_deg):
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.6))
     colors = {"R1": "tab:red", "S1": "tab:blue"}
     for (name, law), ds in runs.items():
-        style = "-" if law == "mdr" else "--"
+        style = "-" if "dissipation" in ds else "--"  # a history law records its energies
         tau = ds["stress"].sel(axis=[2, 3]).values * MPA
         a1.plot(tau[:, 0], tau[:, 1], style, color=colors.get(name, "k"), label=f"{name}, {law}")
         turned = ds["stage"].values == ds["stage"].values.max()
@@ -221,13 +221,13 @@ def plot_history_vs_paper(runs: dict):
     names = sorted({name for name, _ in runs})
     for name in names:
         curves = {}
-        for law in ("paper", "mdr"):
+        for law, style in (("paper", "--"), ("mdr", "-")):
             sh = shear_stage(runs[(name, law)])
             d2 = sh["displacement"].sel(axis=2).values * UM
             ratio = sh["stress"].sel(axis=2).values / sh["stress"].sel(axis=1).values
             se = sh["stress_stderr"].sel(axis=2).values / sh["stress"].sel(axis=1).values
             curves[law] = (d2, ratio, se)
-            a1.plot(d2, ratio, "-" if law == "mdr" else "--", color=colors.get(name, "k"), label=f"{name}, {law}")
+            a1.plot(d2, ratio, style, color=colors.get(name, "k"), label=f"{name}, {law}")
         d2, rm, se = curves["mdr"]
         _band(a2, d2, rm - curves["paper"][1], se, colors.get(name, "k"), label=f"{name}: mdr - paper")
     a1.set_xlabel(r"shear displacement $\Delta_2$ [µm]")
@@ -250,7 +250,7 @@ def plot_unload_reload(runs: dict):
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
     colors = {"R1": "tab:red", "S1": "tab:blue"}
     for (name, law), ds in runs.items():
-        style = "-" if law == "mdr" else "--"
+        style = "-" if "dissipation" in ds else "--"  # a history law records its energies
         x = path_length(ds) * UM
         a1.plot(x, ds["stress"].sel(axis=2).values * MPA, style, color=colors.get(name, "k"), label=f"{name}, {law}")
         n = float(ds.attrs.get("n_asperities", 1))

@@ -310,7 +310,8 @@ def parameters_from_table(table: dict, where: str = "") -> tuple[InterfaceParams
 
 
 def _run_settings(table: dict, where: str) -> dict:
-    from .assemble import LAWS, POLICIES
+    from .assemble import POLICIES
+    from .laws import LAWS
     from .population import N_MAX, SAMPLERS
 
     check_keys(table, tuple(_RUN), where)
@@ -319,7 +320,7 @@ def _run_settings(table: dict, where: str) -> dict:
     out["seed"] = _int(out["seed"], f"{where}seed", 0)
     out["k"] = _int(out["k"], f"{where}k", 1, 4096)
     out["sampler"] = _choice(out["sampler"], f"{where}sampler", SAMPLERS)
-    out["law"] = _choice(out["law"], f"{where}law", LAWS)
+    out["law"] = _choice(out["law"], f"{where}law", tuple(LAWS))
     out["policy"] = _choice(out["policy"], f"{where}policy", POLICIES)
     return out
 

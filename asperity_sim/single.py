@@ -12,15 +12,16 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
-from .assemble import Workspace, check_choice, evaluate
+from . import laws
+from .assemble import Workspace, evaluate
 from .params import InterfaceParams, check_real
 from .population import Population
-from .state import MDRHistory
+from .state import ContactState
 
 COMPONENTS = ["n", "s", "t"]
 
 
-def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16) -> xr.Dataset:
+def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dtype: str = "float64") -> xr.Dataset:
     """Force and energy of one asperity along a path of local displacements.
 
     Parameters
@@ -29,8 +30,9 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16) -> xr.Data
         Local displacements (delta_n, delta_s, delta_t), reached in this order from a virgin
         contact at zero; each row is one increment.
     R : float [m], relative radius;  G : float [Pa];  nu : float [1];  mu : float [1]
-    law : "mdr" (history, default) or "paper" (path independent, SPEC §5)
-    k : int, tangential springs (law "mdr"); their spacing covers the largest overlap of the path
+    law : a registered law: "mdr" (history, default) or "paper" (path independent, SPEC §5)
+    k : int, springs the contact has at least at its largest extent (history laws)
+    spring_dtype : "float64" or "float32", storage of the springs (history laws)
 
     Returns
     -------
@@ -40,7 +42,7 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16) -> xr.Data
     ``elastic_energy`` [J], the contact ``state`` (0 out, 1 stick, 2 partial slip, 3 full
     slip) and ``coarsenings``.
     """
-    check_choice("law", law, ("paper", "mdr"))
+    lw = laws.get(law)
     d = np.asarray(path, dtype=float)
     if d.ndim != 2 or d.shape[1] != 3 or d.shape[0] < 1:
         raise ValueError(f"path must have shape (m, 3) [m] with m >= 1, got shape {d.shape}")
@@ -52,27 +54,28 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16) -> xr.Data
                              nu=nu, e=0.0)
     pop = Population.from_arrays(params, [0.0], [R], [0.0], [0.0])
     ws = Workspace(1)
-    # fresh springs cover 2 max(dn_cap - r, dn_cap/10): dn_cap = dn_max/2 covers the largest overlap exactly
-    history = MDRHistory(pop, k=k, dn_cap=0.5 * dn_max if dn_max > 0 else params.beta) if law == "mdr" else None
+    state = ContactState(pop, lw, k=k, spring_dtype=spring_dtype)
+    state.reference = np.array([dn_max, 0.0, 0.0])  # a fresh contact's springs fit the path's largest overlap
+    history = state if state.has_history else None
     m = d.shape[0]
     force = np.zeros((m, 3))
     tangent = np.zeros((m, 3, 3))
     work = np.zeros(m)
     stored = np.zeros(m)
     diss = np.zeros(m)
-    state = np.zeros(m, dtype=np.int8)
+    codes = np.zeros(m, dtype=np.int8)
     coarse = np.zeros(m, dtype=np.int64)
     w_sum = d_sum = 0.0
     for i in range(m):
-        ev = evaluate(pop, d[i], law=law, workspace=ws, history=history)
+        ev = evaluate(pop, d[i], law=lw, workspace=ws, state=state)
         force[i] = ev.stress
         tangent[i] = ev.tangent
+        c = state.commit(d[i], ev.n_active)
         if history is not None:
-            c = history.commit(d[i], ev.n_active)
             w_sum += c.work
             d_sum += c.dissipation
-            work[i], stored[i], diss[i], coarse[i] = w_sum, c.stored, d_sum, c.coarsenings
-            state[i] = history.state_c[0] if history.slot[0] >= 0 and history.dn_c[0] > 0 else 0
+            work[i], stored[i], diss[i], coarse[i] = w_sum, c.stored, d_sum, c.events
+            codes[i] = state.code[0] if state.flag[0] else 0
     coords = {"point": np.arange(m), "component": COMPONENTS, "component_k": COMPONENTS}
     ds = xr.Dataset(
         {
@@ -82,14 +85,15 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16) -> xr.Data
                         {"units": "N m-1", "long_name": "tangent stiffness d f / d delta"}),
         },
         coords=coords,
-        attrs={"law": law, "R": R, "G": params.G, "nu": params.nu, "mu": params.mu,
+        attrs={"law": lw.name, "R": R, "G": params.G, "nu": params.nu, "mu": params.mu,
                "source": f"asperity_sim {__version__}", "Conventions": "CF-1.8"},
     )
     if history is not None:
         ds.attrs["springs"] = history.k
+        ds.attrs["springs_stored"] = history.n_stored
         ds["external_work"] = ("point", work, {"units": "J", "long_name": "cumulative external work"})
         ds["elastic_energy"] = ("point", stored, {"units": "J", "long_name": "stored elastic energy"})
         ds["dissipation"] = ("point", diss, {"units": "J", "long_name": "cumulative frictional dissipation"})
-        ds["state"] = ("point", state, {"units": "1", "long_name": "contact state (0 out, 1 stick, 2 partial, 3 slip)"})
+        ds["state"] = ("point", codes, {"units": "1", "long_name": "contact state (0 out, 1 stick, 2 partial, 3 slip)"})
         ds["coarsenings"] = ("point", coarse, {"units": "1", "long_name": "spring coarsenings in the increment"})
     return ds

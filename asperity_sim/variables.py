@@ -44,9 +44,18 @@ HISTORY_VARIABLES = {  # recorded for history laws only
     "elastic_energy": Var(("step",), "f8", "J m-2",
                           "elastic energy stored in the contacts (Hertz and tangential springs) per unit nominal area"),
     "dissipation": Var(("step",), "f8", "J m-2", "cumulative frictional dissipation per unit nominal area"),
-    "coarsenings": Var(("step",), "i8", "1", "contacts whose springs were coarsened in the increment"),
     "transitions": Var(("step", "from_state", "to_state"), "i8", "1",
                        "asperities changing contact state in the increment (0 out, 1 stick, 2 partial slip, 3 full slip)"),
+}
+
+DOMAIN_VARIABLES = {  # recorded for path-independent laws only (asperity_sim.domain)
+    "law_domain": Var(("step",), "i1", "1",
+                      "steps outside the law's domain (bits: 1 shear reversal or turn, 2 normal stress change during "
+                      "shear, 4 negative external work over a closed loop; 0 inside)"),
+}
+
+LAW_EVENT_VARIABLES = {  # the per-step event count a history law declares (laws.History.events)
+    "coarsenings": Var(("step",), "i8", "1", "contacts whose springs were coarsened in the increment"),
 }
 
 ASPERITY_VARIABLES = {
@@ -72,4 +81,4 @@ COORDS = {
     "axis_k": Var(("axis_k",), "i4", "1", "displacement component of the tangent"),
 }
 
-ALL_VARIABLES = {**STEP_VARIABLES, **HISTORY_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
+ALL_VARIABLES = {**STEP_VARIABLES, **HISTORY_VARIABLES, **LAW_EVENT_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}

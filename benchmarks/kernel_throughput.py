@@ -31,7 +31,7 @@ import numpy as np
 
 from asperity_sim import Population, presets
 from asperity_sim.assemble import Workspace, evaluate
-from asperity_sim.state import MDRHistory
+from asperity_sim.state import ContactState
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"
 DELTA = np.array([15e-6, 3e-6, 1e-6])
@@ -64,30 +64,31 @@ def time_evaluate(pop, repeat):
 
 def time_mdr(pop, repeat, k=16):
     """Trial evaluations of the mdr law at DELTA with a committed history reaching DELTA."""
-    hist = MDRHistory(pop, k=k, dn_cap=DELTA[0])
+    hist = ContactState(pop, "mdr", k=k)
+    hist.reference = DELTA.copy()
     ws = Workspace(pop.n)
     for s in np.linspace(0.0, 1.0, 11)[1:]:
         d = DELTA * s
-        ev = evaluate(pop, d, law="mdr", history=hist, workspace=ws)
+        ev = evaluate(pop, d, law="mdr", state=hist, workspace=ws)
         t = time.perf_counter()
         hist.commit(d, ev.n_active)
         commit_s = time.perf_counter() - t
     times = []
     for _ in range(repeat):
         t = time.perf_counter()
-        ev = evaluate(pop, DELTA, law="mdr", history=hist, workspace=ws)
+        ev = evaluate(pop, DELTA, law="mdr", state=hist, workspace=ws)
         times.append(time.perf_counter() - t)
-    sl = hist.slot[hist.slot >= 0]
-    on = hist.dn_c[sl] > 0
-    a = np.sqrt(pop.R[hist.slot >= 0][on] * hist.dn_c[sl][on])
-    springs = int(np.sum(np.ceil(a / hist.h[sl][on] - 0.5)))
+    live = np.flatnonzero(hist.asp[:hist.n_slots] >= 0)
+    a = np.sqrt(pop.R[hist.asp[live]] * hist.dn_c[live])
+    springs = int(np.sum(np.minimum(np.ceil(a / hist.arrays[1][live] - 0.5), hist.n_stored)))
     median = float(np.median(times))
+    slot_bytes = hist.nbytes - hist.flag.nbytes
     return {"k": k, "n_contact": ev.n_contact, "springs_in_contact": springs, "seconds_median": median,
             "spring_updates_per_s": springs / median, "visited_evals_per_s": ev.n_active / median,
             "commit_seconds": commit_s, "slots": hist.n_slots,
             "bytes_per_asperity_population": pop.nbytes / pop.n,
             "bytes_per_asperity_history": hist.nbytes / pop.n,
-            "bytes_per_contact_slot": (hist.nbytes - hist.slot.nbytes) / max(hist.n_slots, 1)}
+            "bytes_per_contact_slot": slot_bytes / max(hist.asp.size, 1)}
 
 
 def first_call(cache_dir):
@@ -144,7 +145,7 @@ def main(argv=None):
               f"{r['commit_seconds'] * 1e3:>12.1f}")
     m = mdr_rows[-1]
     print(f"bytes per asperity: population {m['bytes_per_asperity_population']:.0f}, mdr history "
-          f"{m['bytes_per_asperity_history']:.1f} (slot map 4 + {m['bytes_per_contact_slot']:.0f} per asperity "
+          f"{m['bytes_per_asperity_history']:.1f} (flag 1 + {m['bytes_per_contact_slot']:.0f} per asperity "
           f"that has touched; {m['slots']} of {pop.n} have)")
     print(f"first evaluate in a fresh process: {cold[1]:.2f} s with an empty numba cache (JIT), "
           f"{warm[1]:.3f} s with a warm cache")

@@ -213,33 +213,6 @@ def test_vectorised_follow_kernel_matches_scalar_libm_kernel(params, delta_um):
 
 
 
-def test_closure_kernel_gives_the_bits_of_the_general_kernel_without_shear():
-    """Without shear the follow kernel runs :func:`closure_values`, which leaves out the terms that
-    carry delta_t; they are exact zeros, so every value must equal :func:`follow_values` at
-    Delta_2 = Delta_3 = 0 bit for bit: in and out of contact, clipped and unclipped theta_m."""
-    from asperity_sim.assemble import BLOCK, N_VAL, closure_values, follow_values
-
-    rng = np.random.default_rng(3)
-    p = R1
-    m = 4000
-    x = rng.uniform(-5e-6, 20e-6, m)
-    phi = rng.uniform(0.0, 2 * math.pi, m)
-    R = p.R_m * np.exp(rng.normal(0.0, 1.0, m))
-    u = rng.uniform(0.0, 0.5 * math.pi, m)
-    u[:5] = [0.0, 0.5 * math.pi, 1e-9, 0.3, 1.0]
-    c_hertz = 4.0 / 3.0 * p.E_star
-    n_clipped = 0
-    for closure in (0.0, 1e-6, 20e-6, 1e-3):  # theta_m = 0, inner, inner, clipped at pi/2 for small R
-        for i in range(m):
-            a, b = np.zeros(N_VAL * BLOCK), np.zeros(N_VAL * BLOCK)
-            args = (x[i], math.cos(phi[i]), math.sin(phi[i]), R[i], u[i])
-            follow_values(a, 0, *args, 0.0, 0.0, closure, 1.0, p.k_e, c_hertz, p.lam, p.mu)
-            closure_values(b, 0, *args, closure, 1.0, p.k_e, c_hertz, p.lam, p.mu)
-            np.testing.assert_array_equal(a[::BLOCK], b[::BLOCK])
-        n_clipped += np.sum(1.0 - p.k_e * closure / R <= 0.0)
-    assert n_clipped > 0
-
-
 BITS = """
 import numba, numpy as np
 from asperity_sim import Population, presets

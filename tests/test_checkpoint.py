@@ -235,7 +235,7 @@ def test_damaged_or_missing_checkpoint_is_refused(saved, tmp_path):
         asim.resume(tmp_path / "nothing.npz")
     flipped = tmp_path / "flipped.npz"
     with zipfile.ZipFile(saved) as z:
-        info = z.getinfo("hist_w.npy")
+        info = z.getinfo("state_law0.npy")
     raw = bytearray(data)
     raw[info.header_offset + 200] ^= 0xFF  # inside the spring array: the member's CRC no longer matches
     flipped.write_bytes(bytes(raw))

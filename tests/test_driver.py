@@ -810,7 +810,7 @@ def no_work(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("simulate started working before rejecting its input")
 
-    monkeypatch.setattr(drv, "evaluate", boom)
+    monkeypatch.setattr(drv, "evaluate_unchecked", boom)
 
 
 GOOD_PATH = paths.three_step(1e-6, increments=1)
@@ -902,9 +902,9 @@ def run_both(monkeypatch, params, path, n, **kw):
     rows = []
     real = driver.evaluate_steps
 
-    def counted(pop, deltas, ws):
+    def counted(pop, deltas, ws, law):
         rows.append(len(deltas))
-        return real(pop, deltas, ws)
+        return real(pop, deltas, ws, law)
 
     monkeypatch.setattr(driver, "evaluate_steps", counted)
     batched = simulate(params, path, population=pop, **kw)
@@ -967,8 +967,8 @@ def test_a_non_finite_batch_row_is_left_to_the_loop(monkeypatch):
 
     real = driver.evaluate_steps
 
-    def poisoned(pop, deltas, ws):
-        out = real(pop, deltas, ws)
+    def poisoned(pop, deltas, ws, law):
+        out = real(pop, deltas, ws, law)
         out[len(out) // 2:, 0] = np.nan
         return out
 

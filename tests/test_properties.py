@@ -268,7 +268,7 @@ def _no_work(*args, **kwargs):
 def test_invalid_configurations_raise_value_error_naming_the_value(call):
     label, f, word = call
     no_sampling = label.startswith("simulate")
-    with mock.patch.object(driver, "evaluate", _no_work), \
+    with mock.patch.object(driver, "evaluate_unchecked", _no_work), \
             mock.patch.object(driver.Population, "sample", _no_work if no_sampling else Population.sample):
         with pytest.raises(ValueError) as exc:
             f()

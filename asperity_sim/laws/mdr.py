@@ -1,32 +1,41 @@
 """The ``mdr`` asperity law: Hertz normal force and a vector MDR tangential law with memory.
 
-Method of dimensionality reduction (Popov & Heß) in vector form (issue 4): each contact
-is a row of k independent tangential spring-sliders at x_i = (i - 1/2) h on a line.
+Method of dimensionality reduction (Popov & Heß) in vector form: a contact is a row of
+tangential spring-sliders at x_i = (i + 1/2) h on a line (i = 0, 1, ...).
 
 - normal: local overlap of spring i, u_i = delta_n - x_i²/R (in contact where u_i > 0);
-  the normal force stays Hertz, f_n = (4/3) E* sqrt(R) delta_n^(3/2) (SPEC §5);
-- tangential: spring i holds a 2-vector w_i (local s, t components).  In contact it
-  follows the tangential displacement increment of the asperity and is returned radially
-  onto the circle |w_i| <= lam mu u_i (Coulomb per spring, the MDR image of mu p);
-- force: (f_s, f_t) = (2 E*/lam) h sum_i w_i  (tangential spring stiffness G* = E*/lam).
+  the normal force stays Hertz (:mod:`asperity_sim.laws.hertz`);
+- tangential: spring i holds a 2-vector w_i (local s, t components).  In contact it follows
+  the tangential displacement increment of the asperity and is returned radially onto the
+  circle |w_i| <= lam mu u_i (Coulomb per spring, the MDR image of mu p);
+- force: (f_s, f_t) = (2 E*/lam) h sum_i w_i.
 
-Within an increment delta_n and the tangential displacement are taken to vary linearly,
-so a spring that enters contact (u_i^c <= 0 < u_i) carries the part of the increment
-after its entry, frac = u_i / (u_i - u_i^c): proportional loading below slip stays
-exactly elastic.  A spring that leaves contact holds zero.
+Exact (up to the spring count) for any tangential history with varying normal force:
+Cattaneo–Mindlin, Mindlin–Deresiewicz, Masing unloading and reloading with nested memory
+and erasure; it never creates energy and reduces to the ``paper`` law under monotonic
+shear at constant normal force.
 
-Everything here is a scalar numba function of one asperity; the history (committed w,
-committed delta_n) is read, never written, except by :func:`mdr_springs` in commit mode,
-which writes the new springs into a caller-owned scratch array.
+Springs that fit the contact.  A contact is born with k springs across the larger of its
+radius at birth and the radius it is expected to reach (``dn_ref``: its overlap at the end
+of the current stage, where the path prescribes it), h = sqrt(R max(delta_n, dn_ref,
+dn_floor))/k, whatever the interface statistics; each slot stores 2k springs, and a contact
+that grows beyond them is coarsened (neighbours merged, h doubled), so a contact at its
+largest extent has at least k springs in contact.  While a fresh contact is being solved
+for and its overlap exceeds dn_ref, h follows its trial overlap, and the Jacobian includes
+dh/d delta_n.  dn_floor (a 1e-5 fraction of the interface's height scale) only bounds the
+spring count of a contact born with a vanishing overlap.  Coarsening keeps the force and
+counts the stored energy the merge averages away as dissipation (a small artefact of the
+discretisation; none when the expected extent was right).
 
-Energy of one increment, per spring (q = 2 E* h / lam):
-stored ½ q |w|²; work q ½(w^c + w).dδ_i while it sticks (exact for a linear spring: the
-change of its energy), q w.dδ_i when it slips (end-point rule of the radial return), where
-dδ_i is the displacement it took while in contact; dissipation q w.p + ½ q |w - w^c|² >= 0
-for a slipping spring (p: its slip), 0 for a sticking one.  Work = change of stored
-energy + dissipation then holds per spring (to round-off), and dissipation never
-decreases.  A spring that leaves contact follows the increment elastically until its exit
-and then slides to zero as its limit vanishes (:func:`release_springs`).
+Within an increment delta_n and the tangential displacement vary linearly, so a spring
+that enters contact (u_i^c <= 0 < u_i) carries the part of the increment after its entry,
+frac = u_i / (u_i - u_i^c): proportional loading below slip stays exactly elastic.  A
+spring that leaves contact holds zero; a contact that is lost has its memory erased.
+
+Energy of one increment, per spring (q = 2 E* h / lam): stored ½ q |w|²; work
+½ q (w^c + w).dδ_i while it sticks, q w.dδ_i when it slips (end-point rule of the radial
+return); dissipation q w.p + ½ q |w - w^c|² >= 0 for a slipping spring (p: its slip).
+Work = change of stored energy + dissipation then holds per spring to round-off.
 """
 
 from __future__ import annotations
@@ -36,70 +45,107 @@ import math
 import numba
 import numpy as np
 
-STICK, PARTIAL, FULL_SLIP = 1, 2, 3
+from . import FULL_SLIP, PARTIAL, STICK, History, Law, register
+from .hertz import hertz, hertz_energy
+
+FLOOR_FRACTION = 1e-5  # dn_floor / ((alpha + 1) beta)
 
 
-@numba.njit(cache=True)
-def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out):
-    """Local force, Jacobian and energy of one contact with delta_n = dn > 0.
+@numba.njit(cache=True, inline="always")
+def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
+    """(h, scaled): the committed spacing, or for a fresh contact sqrt(R max(dn, dn_ref, dn_floor))/k
+    and whether it scales with dn (then x_i²/R is proportional to dn)."""
+    if not fresh:
+        return h_slot, False
+    fixed = max(dn_ref, dn_floor)
+    scaled = dn > fixed
+    return math.sqrt(R * (dn if scaled else fixed)) / k, scaled
 
-    Parameters
-    ----------
-    dn : trial normal overlap [m]
-    dds, ddt : trial tangential increment (s, t) since the committed state [m]
-    dn_c : committed normal overlap [m] (<= 0: no committed contact)
-    w_c : (>= n_hist, 2) committed spring vectors [m]; only the first n_hist are read
-    n_hist : number of springs with history (0 for a fresh contact)
-    h : spring spacing [m]
-    J : (3, 3) output, d(f_n, f_s, f_t) / d(delta_n, dds, ddt)
-    w_out : (m, 2) scratch written with the new springs when m > 0 (commit mode)
 
-    Returns
-    -------
-    f_n, f_s, f_t [N], n_springs (in contact), n_slipping, state code,
-    work, delta_stored, dissipation [J] (meaningful in commit mode only)
+@numba.njit(cache=True, inline="always")
+def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, write):
+    """Tangential force, its Jacobian, counts and (``write``) energy of one contact's springs.
+
+    ``w`` (>= stored, 2): committed springs (ignored when ``fresh``); ``w_out``: scratch for the
+    new springs (``write`` only).  Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs,
+    n_slip, work, d_stored, dissipation), J = d(F_s, F_t)/d(dn, dds, ddt).
+
+    The Coulomb limit of spring i is lam mu rho u_i, with rho = f_n / (2 E* h sum u_i) the
+    ratio of the Hertz force to the springs' own normal force (1 up to the discretisation), so
+    that a contact in full slip carries exactly mu f_n, as the paper law.
     """
-    C = (4.0 / 3.0) * E_star * math.sqrt(R)
-    sq = math.sqrt(dn)
-    f_n = C * dn * sq
     inv_R = 1.0 / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    write = w_out.shape[0] > 0
+    f_n, k_n = hertz(dn, R, E_star)
+    n_in, sum_u, _ = entering_tail(0, dn, dn_c, h * h * inv_R)
+    rho = f_n / (2.0 * E_star * h * sum_u) if sum_u > 0.0 else 1.0
+    # d rho / d dn: zero when h follows the overlap (both forces grow as dn^(3/2)); else d sum u / d dn = n_in
+    drho = 0.0 if scaled or sum_u <= 0.0 else rho * (k_n / f_n - n_in / sum_u)
+    lm_r = lm * rho
+    n_store = w.shape[0]
     Fs = Ft = 0.0
     J10 = J11 = J12 = J20 = J21 = J22 = 0.0
-    n_springs = 0
-    n_slip = 0
+    n_springs = n_slip = 0
     work = stored_change = dissipation = 0.0
+    gap = dn - dn_c
+    tail = not fresh and not write  # a trial sums the springs beyond the stored ones in closed form
     i = 0
     while True:
-        x = (i + 0.5) * h
-        x2 = x * x * inv_R
+        x2 = ((i + 0.5) * h) ** 2 * inv_R
         u = dn - x2
         if u <= 0.0:
             break
+        if tail and i == n_store:
+            m, tail_u, tail_uc = entering_tail(i, dn, dn_c, h * h * inv_R)
+            n_springs += m
+            if dds * dds + ddt * ddt <= (lm_r * gap) ** 2 and lm != 0.0:  # every entering spring sticks
+                Fs += tail_u / gap * dds
+                Ft += tail_u / gap * ddt
+                J10 += tail_uc / (gap * gap) * dds
+                J20 += tail_uc / (gap * gap) * ddt
+                J11 += tail_u / gap
+                J22 += tail_u / gap
+            else:  # every one slips, along the increment
+                n_slip += m
+                dd = math.sqrt(dds * dds + ddt * ddt)
+                es, et = (dds / dd, ddt / dd) if dd > 0.0 else (0.0, 0.0)
+                ratio = lm_r * gap / dd if dd > 0.0 else 0.0
+                P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
+                bs, bt = tail_uc / (gap * gap) * dds, tail_uc / (gap * gap) * ddt
+                dlim_sum = lm * (rho * m + drho * tail_u)
+                J10 += P00 * bs + P01 * bt + dlim_sum * es
+                J20 += P01 * bs + P11 * bt + dlim_sum * et
+                J11 += tail_u / gap * P00
+                J12 += tail_u / gap * P01
+                J21 += tail_u / gap * P01
+                J22 += tail_u / gap * P11
+                Fs += lm_r * tail_u * es
+                Ft += lm_r * tail_u * et
+            break
         u_c = dn_c - x2
-        # continuing spring: committed vector plus the increment.  A spring with memory but
-        # u_c <= 0 exists only after coarsening (merged across the contact edge): it keeps it.
-        if i < n_hist and (u_c > 0.0 or w_c[i, 0] != 0.0 or w_c[i, 1] != 0.0):
-            wcs, wct = w_c[i, 0], w_c[i, 1]
+        g = x2 / dn if scaled else 0.0  # d x_i²/R / d dn: positions scale with a fresh contact
+        # continuing spring: committed vector plus the increment (a spring with memory and u_c <= 0
+        # exists only after coarsening, merged across the contact edge: it keeps its memory)
+        if not fresh and i < n_store and (u_c > 0.0 or w[i, 0] != 0.0 or w[i, 1] != 0.0):
+            wcs, wct = float(w[i, 0]), float(w[i, 1])
             a = 1.0
-            bs = bt = 0.0
+            da = 0.0
         else:  # entering: in contact for the last fraction of the increment
             wcs = wct = 0.0
-            if u_c > 0.0:  # no stored history (fresh contact already overlapping): whole increment
+            if u_c > 0.0:  # already overlapping without memory: the whole increment
                 a = 1.0
                 da = 0.0
             else:
-                a = u / (u - u_c)
-                da = -u_c / ((u - u_c) * (u - u_c))
-            bs, bt = da * dds, da * ddt
+                a = u / gap
+                da = ((1.0 - g) * gap - u) / (gap * gap)
+        bs, bt = da * dds, da * ddt
         ws = wcs + a * dds
         wt = wct + a * ddt
-        limit = lm * u
+        limit = lm_r * u
+        dlim = lm * (rho * (1.0 - g) + u * drho)
         m2 = ws * ws + wt * wt
-        # mu = 0: the stick region is empty, every spring slides (zero force and zero tangent,
-        # also at a zero tangential increment, where the stick branch would give a spurious q a)
+        # mu = 0: the stick region is empty, every spring slides (zero force and tangent)
         slipping = m2 > limit * limit or lm == 0.0
         if not slipping:
             Fs += ws
@@ -111,15 +157,12 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
         else:
             n_slip += 1
             m = math.sqrt(m2)
-            if m > 0.0:
-                es, et = ws / m, wt / m
-            else:
-                es = et = 0.0
+            es, et = (ws / m, wt / m) if m > 0.0 else (0.0, 0.0)
             ratio = limit / m if m > 0.0 else 0.0
-            # d(limit e)/d(w*) = ratio (I - e e^T); d limit/d delta_n = lm
+            # d(limit e)/d(w*) = ratio (I - e e^T); d limit / d dn = dlim
             P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
-            J10 += P00 * bs + P01 * bt + lm * es
-            J20 += P01 * bs + P11 * bt + lm * et
+            J10 += P00 * bs + P01 * bt + dlim * es
+            J20 += P01 * bs + P11 * bt + dlim * et
             J11 += a * P00
             J12 += a * P01
             J21 += a * P01
@@ -131,51 +174,62 @@ def mdr_springs(dn, dds, ddt, dn_c, w_c, n_hist, h, R, E_star, lam, mu, J, w_out
             if i < w_out.shape[0]:
                 w_out[i, 0] = ws
                 w_out[i, 1] = wt
-            # displacement this spring took while in contact: a (dds, ddt)
-            dis, dit = a * dds, a * ddt
+            dis, dit = a * dds, a * ddt  # displacement this spring took while in contact
             de = 0.5 * q * (ws * ws + wt * wt - wcs * wcs - wct * wct)
-            if slipping:  # end-point work; dissipation q w.p + ½ q |w - w_c|² >= 0, p the slip
-                wk = q * (ws * dis + wt * dit)
+            if slipping:
                 ps, pt = wcs + dis - ws, wct + dit - wt
+                work += q * (ws * dis + wt * dit)
                 dissipation += q * (ws * ps + wt * pt) + 0.5 * q * ((ws - wcs) ** 2 + (wt - wct) ** 2)
             else:  # a linear spring: its work is its change of energy
-                wk = de
-            work += wk
+                work += de
             stored_change += de
         n_springs += 1
         i += 1
-    if write:
-        wk, de, dd = release_springs(w_c, i, n_hist, dn, dn_c, h, inv_R, dds, ddt, q)
+    if write and not fresh:
+        wk, de, dd = release(w, i, dn, dn_c, h, inv_R, dds, ddt, q)
         work += wk
         stored_change += de
         dissipation += dd
-        for jj in range(i, w_out.shape[0]):
-            w_out[jj, 0] = 0.0
-            w_out[jj, 1] = 0.0
-    J[0, 0] = 1.5 * C * sq
-    J[0, 1] = J[0, 2] = 0.0
-    J[1, 0], J[1, 1], J[1, 2] = q * J10, q * J11, q * J12
-    J[2, 0], J[2, 1], J[2, 2] = q * J20, q * J21, q * J22
-    if n_slip == 0:
-        state = STICK
-    elif n_slip == n_springs:
-        state = FULL_SLIP
-    else:
-        state = PARTIAL
-    return f_n, q * Fs, q * Ft, n_springs, n_slip, state, work, stored_change, dissipation
+    Fs *= q
+    Ft *= q
+    J10, J11, J12, J20, J21, J22 = q * J10, q * J11, q * J12, q * J20, q * J21, q * J22
+    if scaled:  # q and the positions follow the overlap of a fresh contact: dq/d dn = q/(2 dn)
+        J10 += 0.5 * Fs / dn
+        J20 += 0.5 * Ft / dn
+    return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, work, stored_change, dissipation
 
 
 @numba.njit(cache=True, inline="always")
-def release_springs(w_c, start, n_hist, dn, dn_c, h, inv_R, dds, ddt, q):
-    """Work, change of stored energy and dissipation of springs start..n_hist-1 leaving contact.
+def entering_tail(i0, dn, dn_c, c):
+    """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
 
-    A spring in contact for the first fraction f = u^c/(u^c - u) of the increment follows
-    it elastically to w* = w^c + f dδ (work ½ q (w^c + w*).f dδ); as its limit vanishes at
-    the exit it slides to zero, dissipating ½ q |w*|².  Under proportional unloading w* = 0.
+    Springs beyond the stored ones enter contact in this increment: each takes the same part
+    u_i / (dn - dn_c) of it and they all stick or all slip together, so their sums need only
+    these three numbers (the cost of a trial does not grow with the overlap).
+    """
+    N = int(math.sqrt(dn / c) + 0.5)  # springs i < N have (i + 1/2)² c < dn
+    while dn - c * (N + 0.5) ** 2 > 0.0:
+        N += 1
+    while N > i0 and dn - c * (N - 0.5) ** 2 <= 0.0:
+        N -= 1
+    m = N - i0
+    if m <= 0:
+        return 0, 0.0, 0.0
+    sq = (N * (4.0 * N * N - 1.0) - i0 * (4.0 * i0 * i0 - 1.0)) / 12.0  # sum_{i0 <= i < N} (i + 1/2)²
+    return m, m * dn - c * sq, c * sq - m * dn_c
+
+
+@numba.njit(cache=True, inline="always")
+def release(w, start, dn, dn_c, h, inv_R, dds, ddt, q):
+    """Work, change of stored energy and dissipation of the stored springs start.. leaving contact.
+
+    A spring in contact for the first fraction f = u^c/(u^c - u) of the increment follows it
+    elastically to w* = w^c + f dδ; as its limit vanishes at the exit it slides to zero,
+    dissipating ½ q |w*|².  Under proportional unloading w* = 0.
     """
     work = stored_change = dissipation = 0.0
-    for jj in range(start, n_hist):
-        wcs, wct = w_c[jj, 0], w_c[jj, 1]
+    for jj in range(start, w.shape[0]):
+        wcs, wct = float(w[jj, 0]), float(w[jj, 1])
         if wcs == 0.0 and wct == 0.0:
             continue
         x2 = ((jj + 0.5) * h) ** 2 * inv_R
@@ -188,12 +242,24 @@ def release_springs(w_c, start, n_hist, dn, dn_c, h, inv_R, dds, ddt, q):
     return work, stored_change, dissipation
 
 
-@numba.njit(cache=True)
-def hertz_energy(dn, R, E_star):
-    """Elastic energy of the Hertz normal spring, (8/15) E* sqrt(R) delta_n^(5/2) [J]."""
-    if dn <= 0.0:
-        return 0.0
-    return (8.0 / 15.0) * E_star * math.sqrt(R) * dn * dn * math.sqrt(dn)
+@numba.njit(cache=True, inline="always")
+def state_code(n_springs, n_slip):
+    if n_slip == 0:
+        return STICK
+    return FULL_SLIP if n_slip == n_springs else PARTIAL
+
+
+@numba.njit(cache=True, inline="always")
+def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
+    """Force, Jacobian and state code of one contact (dn > 0) from its committed springs; reads only."""
+    E_star, lam, mu, k, dn_floor = consts
+    w_all, h_all = arrays
+    row = 0 if fresh else sl
+    h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[row])
+    f_n, k_n = hertz(dn, R, E_star)
+    Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, _, _, _ = springs(
+        dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[row], h, scaled, fresh, w_all[row], False)
+    return (f_n, Fs, Ft, k_n, 0.0, 0.0, J10, J11, J12, J20, J21, J22, float(state_code(n_springs, n_slip)))
 
 
 @numba.njit(cache=True)
@@ -220,6 +286,70 @@ def merge_pairs(w, n):
     return lost
 
 
-def spring_spacing_guess(R, dn_cap, k):
-    """Spacing h = sqrt(R dn_cap)/k [m] that covers a contact of overlap dn_cap with k springs."""
-    return np.sqrt(R * np.maximum(dn_cap, 0.0)) / k
+@numba.njit(cache=True)
+def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch):
+    """Write the springs of slot ``sl`` at the converged displacement; (code, work, stored, dissipation, coarsenings).
+
+    dn <= 0: the contact is lost, its springs are released and its memory erased.  Energies
+    [J] include the Hertz normal spring; ``stored`` is the contact's energy after the increment.
+    """
+    E_star, lam, mu, k, dn_floor = consts
+    w_all, h_all = arrays
+    w = w_all[sl]
+    n_store = w.shape[0]
+    q_unit = 2.0 * E_star / lam
+    e_old = 0.0 if fresh else hertz_energy(dn_c, R, E_star)
+    if dn <= 0.0:
+        h = h_all[sl]
+        wk, _, dd = release(w, 0, dn, dn_c, h, 1.0 / R, dds, ddt, q_unit * h)
+        for i in range(n_store):
+            w[i, 0] = 0.0
+            w[i, 1] = 0.0
+        h_all[sl] = 0.0
+        return 0, wk - e_old, 0.0, dd, 0
+    h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[sl])
+    n_need = int(math.sqrt(R * dn) / h + 0.5) + 2
+    buf = scratch if n_need <= scratch.shape[0] else np.zeros((n_need, 2))
+    _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = springs(
+        dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf, True)
+    coarsenings = 0
+    while n_springs > n_store:  # coarsen: the contact outgrew its springs
+        diss += q_unit * h * merge_pairs(buf, n_springs)
+        h *= 2.0
+        n_springs = (n_springs + 1) // 2
+        coarsenings += 1
+    stored = 0.0
+    for i in range(n_store):
+        a, b = (buf[i, 0], buf[i, 1]) if i < n_springs else (0.0, 0.0)
+        w[i, 0] = a
+        w[i, 1] = b
+        stored += a * a + b * b
+    h_all[sl] = h
+    e_new = hertz_energy(dn, R, E_star)
+    return (state_code(n_springs, n_slip), work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss,
+            1 if coarsenings else 0)
+
+
+def arrays(capacity, k, dtype):
+    """Per-slot state: springs w (capacity, 2k, 2) of ``dtype`` and spacing h (capacity,) [m]."""
+    return np.zeros((capacity, 2 * k, 2), dtype=dtype), np.zeros(capacity)
+
+
+def bytes_per_contact(k, dtype):
+    return 2 * k * 2 * np.dtype(dtype).itemsize + 8
+
+
+def constants(params, k):
+    return (params.E_star, params.lam, params.mu, float(k), FLOOR_FRACTION * (params.alpha + 1.0) * params.beta)
+
+
+MDR = register(Law(
+    name="mdr",
+    summary="Hertz + vector MDR springs per contact: loading, unloading, reloading, turning (history)",
+    constants=constants,
+    history=History(arrays=arrays, trial=mdr_trial, commit=mdr_commit, events="coarsenings",
+                    events_long_name="contacts whose springs were coarsened in the increment",
+                    bytes_per_contact=bytes_per_contact),
+    domain="any path",
+    spring_dtypes=("float64", "float32"),
+))

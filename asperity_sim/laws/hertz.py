@@ -1,0 +1,27 @@
+"""Hertz normal contact, shared by every law (SPEC §5, Eq. 16).
+
+f_n = (4/3) E* sqrt(R) delta_n^(3/2), its stiffness d f_n / d delta_n = 2 E* sqrt(R delta_n)
+and its elastic energy (8/15) E* sqrt(R) delta_n^(5/2).
+"""
+
+from __future__ import annotations
+
+import numba
+
+from ..geometry import fsqrt
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def hertz(dn, R, E_star):
+    """(f_n [N], k_n [N/m]) of an overlap dn > 0 [m] on relative radius R [m]."""
+    C = (4.0 / 3.0) * E_star * fsqrt(R)
+    sq = fsqrt(dn)
+    return C * dn * sq, 1.5 * C * sq
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def hertz_energy(dn, R, E_star):
+    """Elastic energy of the normal contact [J]; 0 out of contact."""
+    if dn <= 0.0:
+        return 0.0
+    return (8.0 / 15.0) * E_star * fsqrt(R) * dn * dn * fsqrt(dn)

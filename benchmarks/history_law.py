@@ -1,0 +1,235 @@
+"""Cost of the history law ``mdr`` against the ``paper`` law, measured side by side in one run.
+
+What it measures (R1, k = 16, constant-normal-stress shear at 300 MPa; every number a ratio to
+something timed in the same process, because absolute times drift on a shared machine):
+
+1. **Increment cost**: the same population and path (sigma_1 to 300 MPa in 10 increments, then
+   Delta_2 to 10 um in 40), run with ``paper`` and with ``mdr``; the mean wall time of a
+   shear increment (from the progress callback), and mdr / paper.  Target: <= 5.
+2. **Trial against a streaming probe**: after the mdr run, a trial evaluation near the last
+   converged state, against a minimal parallel kernel that streams the same number of spring
+   bytes (the springs in contact: u_i > 0 at the committed overlap).  The ratio probe time /
+   trial time is the fraction of streaming speed a trial reaches.  Target: >= 0.4.
+3. **Commit against trial**: a commit at the converged displacement (the same passes a commit
+   of a new increment makes) against a trial.  Target: <= 1.
+4. **float32 springs**: the mdr run again with ``spring_dtype="float32"``: its increment cost
+   and the largest stress difference to float64 along the path, relative to the largest stress.
+5. **Scaling**: the shear increment at n / 10 asperities (mdr), as the ratio of the two.
+
+With ``--scale`` it also runs (each in a fresh process) the 10 000 000-asperity, 300-increment
+mdr path and the same path with the paper law: wall time and peak resident memory, against
+the paper law's peak plus the bytes of the springs (target: <= 1.1 x), and the 570-increment
+cyclic path at 1 000 000 asperities (target: under a minute).
+
+Run:   python benchmarks/history_law.py [--n 500000] [--scale]
+Writes outputs/history_law.json and prints a table.  About 2 minutes; --scale adds about 10.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from asperity_sim import Population, paths, presets, simulate
+from asperity_sim.assemble import Workspace, evaluate_unchecked
+from asperity_sim.state import ContactState
+
+OUT = Path(__file__).resolve().parent.parent / "outputs"
+S, D = paths.STRESS, paths.DISPLACEMENT
+UM = 1e-6
+
+
+def cns_path(sigma_n=300e6, d2=10 * UM, normal=10, shear=40):
+    return paths.LoadPath((paths.Stage((S, D, D), (sigma_n, 0, 0), normal, name="normal"),
+                           paths.Stage((S, D, D), (sigma_n, d2, 0), shear, name="shear")), name="cns")
+
+
+def timed_run(pop, path, **kw):
+    """(dataset, mean wall time of the increments of the last stage [s])."""
+    marks = []
+
+    def progress(stage, n_stages, fraction, step, iterations):
+        marks.append((stage, time.perf_counter()))
+
+    t0 = time.perf_counter()
+    ds = simulate(pop.params, path, population=pop, progress=progress, **kw)
+    last = [t for s, t in marks if s == len(path.stages)]
+    first = [t for s, t in marks if s == len(path.stages) - 1]
+    start = first[-1] if first else t0
+    return ds, (last[-1] - start) / len(last)
+
+
+@numba.njit(parallel=True, cache=True)
+def _stream(a):
+    n_chunks = 64
+    size = (a.size + n_chunks - 1) // n_chunks
+    part = np.zeros(n_chunks)
+    for c in numba.prange(n_chunks):
+        s = 0.0
+        for i in range(c * size, min(a.size, (c + 1) * size)):
+            s += a[i]
+        part[c] = s
+    return part.sum()
+
+
+def best_of(f, repeat):
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        f()
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)), float(np.min(times))
+
+
+def springs_in_contact(state) -> int:
+    """Springs with u_i > 0 at the committed overlap, summed over the committed contacts."""
+    live = np.flatnonzero(state.asp[:state.n_slots] >= 0)
+    R = state.pop.R[state.asp[live]]
+    h = state.arrays[1][live]
+    n = np.ceil(np.sqrt(R * state.dn_c[live]) / h - 0.5)
+    return int(np.minimum(n, state.n_stored).sum())
+
+
+def rebuild_state(pop, path, k, dtype):
+    """The mdr state at the end of ``path``, committed increment by increment at the run's displacements."""
+    ds = simulate(pop.params, path, population=pop, law="mdr", k=k, spring_dtype=dtype)
+    state = ContactState(pop, "mdr", k=k, spring_dtype=dtype)
+    ws = Workspace(pop.n)
+    for d in ds.displacement.values[1:]:
+        evaluate_unchecked(pop, d, state, ws)
+        state.commit(d)
+    return state, ds
+
+
+def measure(n, k, repeat):
+    pop = Population.sample(presets.R1, n, seed=1)
+    path = cns_path()
+    out = {"n": n, "k": k}
+    simulate(pop.params, cns_path(normal=2, shear=2), population=Population.sample(presets.R1, 2000, seed=0),
+             law="mdr", k=k)  # compile
+    ds_p, t_p = timed_run(pop, path, law="paper")
+    ds_m, t_m = timed_run(pop, path, law="mdr", k=k)
+    ds_m32, t_m32 = timed_run(pop, path, law="mdr", k=k, spring_dtype="float32")
+    smax = np.abs(ds_m.stress.values).max()
+    out.update(paper_increment_s=t_p, mdr_increment_s=t_m, mdr_over_paper=t_m / t_p,
+               mdr_f32_increment_s=t_m32, mdr_f32_over_f64=t_m32 / t_m,
+               f32_max_stress_error=float(np.abs(ds_m32.stress.values - ds_m.stress.values).max() / smax),
+               peak_ratio_mdr_over_paper=float((ds_m.stress.values[:, 1] / ds_m.stress.values[:, 0])[1:].max()
+                                               / (ds_p.stress.values[:, 1] / ds_p.stress.values[:, 0])[1:].max()),
+               contacts=int(ds_m.n_contact.values[-1]))
+    # trial, commit and the streaming probe at the end state
+    state, _ = rebuild_state(pop, path, k, "float64")
+    ws = Workspace(pop.n)
+    d = state.delta_c + np.array([1e-3, 2e-3, 0.0]) * UM
+    trial_med, trial_min = best_of(lambda: evaluate_unchecked(pop, d, state, ws), repeat)
+    commit_med, commit_min = best_of(lambda: state.commit(state.delta_c.copy()), repeat)
+    m = springs_in_contact(state)
+    probe = np.ones(2 * m)  # the spring bytes in contact, float64
+    _stream(probe)
+    probe_med, probe_min = best_of(lambda: _stream(probe), repeat)
+    out.update(springs_in_contact=m, spring_bytes_in_contact=int(probe.nbytes),
+               trial_s=trial_med, commit_s=commit_med, probe_s=probe_med,
+               trial_over_probe_speed=probe_med / trial_med, commit_over_trial=commit_med / trial_med,
+               state_bytes=state.nbytes, population_bytes=pop.nbytes)
+    # scaling: the same path at n / 10
+    small = Population.sample(presets.R1, n // 10, seed=1)
+    _, t_small = timed_run(small, path, law="mdr", k=k)
+    out.update(mdr_increment_small_s=t_small, scaling_n_over_n10=t_m / t_small)
+    return out
+
+
+SCALE = r"""
+import json, resource, sys, time
+import numpy as np
+from asperity_sim import Population, paths, presets, simulate
+n, law, which = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+S, D = paths.STRESS, paths.DISPLACEMENT
+if which == "long":   # 300 increments: normal 50, shear 250
+    path = paths.LoadPath((paths.Stage((S, D, D), (300e6, 0, 0), 50), paths.Stage((S, D, D), (300e6, 10e-6, 0), 250)))
+else:                 # cyclic: normal 30, then 6 cycles of +-3 um in 90 increments each
+    st = [paths.Stage((S, D, D), (300e6, 0, 0), 30)]
+    for _ in range(6):
+        st += [paths.Stage((S, D, D), (300e6, 3e-6, 0), 22), paths.Stage((S, D, D), (300e6, -3e-6, 0), 45),
+               paths.Stage((S, D, D), (300e6, 0, 0), 23)]
+    path = paths.LoadPath(tuple(st))
+simulate(presets.R1, paths.LoadPath(path.stages[:1]), n=2000, law=law, k=16)  # compile
+t = time.perf_counter()
+pop = Population.sample(presets.R1, n, seed=1)
+t_sample = time.perf_counter() - t
+t = time.perf_counter()
+ds = simulate(presets.R1, path, population=pop, law=law, k=16)
+wall = time.perf_counter() - t
+out = {"n": n, "law": law, "path": which, "increments": int(ds.sizes["step"] - 1), "sample_s": t_sample,
+       "run_s": wall, "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
+       "contacts_end": int(ds.n_contact.values[-1]), "contacts_max": int(ds.n_contact.values.max())}
+print(json.dumps(out))
+"""
+
+
+def scale_runs():
+    res = {}
+    for n, law, which in ((10_000_000, "paper", "long"), (10_000_000, "mdr", "long"), (1_000_000, "mdr", "cyclic")):
+        t = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", SCALE, str(n), law, which], capture_output=True, text=True)
+        if p.returncode:
+            res[f"{law}_{which}_{n}"] = {"error": p.stderr[-2000:]}
+            continue
+        res[f"{law}_{which}_{n}"] = json.loads(p.stdout.strip().splitlines()[-1])
+        print(f"  {law} {which} n={n}: {time.perf_counter() - t:.0f} s", flush=True)
+    return res
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=500_000)
+    ap.add_argument("--k", type=int, default=16)
+    ap.add_argument("--repeat", type=int, default=15)
+    ap.add_argument("--scale", action="store_true", help="also the 10M-asperity and 1M cyclic runs (~10 min)")
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
+                       "numba": numba.__version__, "load_start": os.getloadavg()[0]}}
+    out["side_by_side"] = r = measure(args.n, args.k, args.repeat)
+    print(f"n = {r['n']}, k = {r['k']}, contacts at the end: {r['contacts']}")
+    print(f"shear increment: paper {1e3 * r['paper_increment_s']:.1f} ms, mdr {1e3 * r['mdr_increment_s']:.1f} ms "
+          f"-> mdr / paper = {r['mdr_over_paper']:.2f} (target <= 5)")
+    print(f"trial {1e3 * r['trial_s']:.2f} ms, streaming probe of {r['spring_bytes_in_contact'] / 1e6:.1f} MB "
+          f"{1e3 * r['probe_s']:.2f} ms -> trial at {r['trial_over_probe_speed']:.2f} of streaming speed (target >= 0.4)")
+    print(f"commit {1e3 * r['commit_s']:.2f} ms -> commit / trial = {r['commit_over_trial']:.2f} (target <= 1)")
+    print(f"float32 springs: increment x{r['mdr_f32_over_f64']:.2f} of float64, max stress error "
+          f"{r['f32_max_stress_error']:.1e} of the largest stress")
+    print(f"peak sigma2/sigma1 mdr / paper = {r['peak_ratio_mdr_over_paper']:.4f}")
+    print(f"scaling: mdr increment at n / n/10 = {r['scaling_n_over_n10']:.1f}")
+    if args.scale:
+        out["scale"] = s = scale_runs()
+        p, m = s.get("paper_long_10000000", {}), s.get("mdr_long_10000000", {})
+        if "peak_rss" in p and "peak_rss" in m:
+            k2 = 2 * args.k
+            springs = m["contacts_max"] * (k2 * 2 * 8 + 8)
+            s["memory_ratio"] = m["peak_rss"] / (p["peak_rss"] + springs)
+            print(f"10M x 300 increments: mdr {m['run_s']:.0f} s (target < 300), paper {p['run_s']:.0f} s; peak RSS "
+                  f"mdr {m['peak_rss'] / 2**30:.2f} GiB, paper {p['peak_rss'] / 2**30:.2f} GiB + springs "
+                  f"{springs / 2**30:.2f} GiB -> ratio {s['memory_ratio']:.2f} (target <= 1.1)")
+        c = s.get("mdr_cyclic_1000000", {})
+        if "run_s" in c:
+            print(f"1M cyclic, {c['increments']} increments: {c['run_s']:.1f} s (target < 60)")
+    out["wall_s"] = time.perf_counter() - t0
+    OUT.mkdir(exist_ok=True)
+    (OUT / "history_law.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {OUT / 'history_law.json'} ({out['wall_s']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
