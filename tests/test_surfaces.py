@@ -1,0 +1,222 @@
+"""Tests of asperity_sim.surfaces: reading, composite, summits against Nayak's closed forms, fit, population.
+
+The closed forms (Nayak 1971, isotropic Gaussian surface, profile spectral moments m0, m2, m4):
+    summit density  n_s = m4 / (6 pi sqrt(3) m2)        [1/m²]
+    mean summit curvature  E[-(k1 + k2)/2] = (8/3) sqrt(m4 / pi)   [1/m]
+The second holds for every bandwidth alpha = m0 m4 / m2², not only as alpha -> inf: gradient
+and Hessian of a stationary Gaussian field are independent, and the height (the only variable
+correlated with the Hessian) is integrated out.  The moments are computed from the synthetic
+heights by exact Fourier derivatives (surfaces.spectral_moments), independent of the summit finder.
+
+Tolerances.  An 8-neighbour finder on a grid of spacing dx converges to the continuum values
+with an error O((q_s dx)²) (q_s = 2 pi / short cutoff); with the short cutoff at 16 pixels,
+(q_s dx)²/12 = 1.3 % is the scale of the truncation error of a second difference at the
+shortest wavelength, and we allow 1.5 % bias plus three standard errors across seeds.  The
+convergence itself is tested: halving the cutoff in pixels (8 px) must give a larger error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+sf = pytest.importorskip("asperity_sim.surfaces")
+pytest.importorskip("SurfaceTopography")
+
+from asperity_sim import presets  # noqa: E402
+from asperity_sim.population import Population  # noqa: E402
+
+L = 1e-3  # [m]
+
+
+def _band(n, cutoff_px, seed):
+    """A band-limited self-affine surface: short cutoff cutoff_px pixels, long cutoff 4x that."""
+    dx = L / n
+    return sf.synthetic(n, L, hurst=0.8, rms_height=1e-6, short_cutoff=cutoff_px * dx,
+                        long_cutoff=4 * cutoff_px * dx, seed=seed)
+
+
+def _ratios(n, cutoff_px, seeds):
+    dens, curv = [], []
+    for seed in seeds:
+        s = _band(n, cutoff_px, seed)
+        ref = sf.nayak(*sf.spectral_moments(s))
+        sm = sf.find_summits(s)
+        dens.append(sm.density / ref["summit_density"])
+        curv.append(sm.curvature.mean() / ref["mean_curvature"])
+    return np.array(dens), np.array(curv)
+
+
+@pytest.fixture(scope="module")
+def fine_ratios():
+    return _ratios(1024, 16, range(4))
+
+
+def test_summit_density_and_curvature_match_nayak(fine_ratios):
+    for name, r in zip(("summit density", "mean curvature"), fine_ratios):
+        se = r.std(ddof=1) / math.sqrt(r.size)
+        assert abs(r.mean() - 1.0) < 0.015 + 3 * se, f"{name}: finder / Nayak = {r.mean():.4f} ± {se:.4f}"
+
+
+def test_finder_converges_with_sampling(fine_ratios):
+    coarse = _ratios(1024, 8, range(2))
+    for c, f in zip(coarse, fine_ratios):
+        assert abs(c.mean() - 1.0) > abs(f.mean() - 1.0)
+
+
+def test_fit_density_is_nayak_and_stderr_is_calibrated():
+    """N is the Nayak density; bootstrap stderr of alpha and R_m agrees with the spread across surfaces."""
+    fits = [sf.fit(_band(512, 8, seed), bootstrap=100, seed=seed) for seed in range(8)]
+    ref = sf.nayak(*sf.spectral_moments(_band(512, 8, 0)))
+    N = np.array([f.params.N for f in fits])
+    assert abs(N.mean() / ref["summit_density"] - 1) < 0.05  # 8 px: about 2 % below, see the module docstring
+    for name in ("alpha", "R_m"):
+        spread = np.std([getattr(f.params, name) for f in fits], ddof=1)
+        boot = np.mean([f.stderr[name] for f in fits])
+        # the sample s.d. of 8 values is within a factor 2 of the truth with probability > 0.95
+        assert 0.5 < boot / spread < 2.0, f"{name}: bootstrap {boot:.3g} vs spread across surfaces {spread:.3g}"
+
+
+def test_fit_result_fields_and_not_identified():
+    s = _band(256, 8, 3)
+    res = sf.fit(s, base="S1")
+    p = res.params
+    for name in sf.NOT_IDENTIFIED:
+        assert getattr(p, name) == getattr(presets.S1, name)
+        assert "not identified" in res.source_of(name) and "S1" in res.source_of(name)
+    for name in sf.IDENTIFIED:
+        assert res.stderr[name] > 0 and "fitted" in res.source_of(name)
+    d = res.summits.depth
+    assert d[0] == 0 and np.all(d >= 0)
+    assert math.isclose((p.alpha + 1) * p.beta, d.mean(), rel_tol=1e-12)  # Eq. (2) mean
+    assert math.isclose((p.alpha + 1) * p.beta**2, d.var(ddof=1), rel_tol=1e-12)  # Eq. (2) variance
+    assert 0 < res.goodness["heights"] < 1 and 0 < res.goodness["radii"] < 1
+    assert res.goodness["n"] == res.summits.n
+    assert math.isclose(p.N, res.summits.n / L**2)
+
+
+def test_ks_statistic_detects_a_wrong_distribution():
+    """The KS statistic of the fit is small for gamma-like depths and large for a two-level surface."""
+    s = _band(256, 8, 1)
+    good = sf.fit(s).goodness["heights"]
+    h = s.heights.copy()
+    h += np.where(np.arange(256)[:, None] < 128, 0.0, 20 * h.std())  # two plateaus: bimodal summit depths
+    bad = sf.fit(sf.Surface(h, s.physical_sizes, True), detrend_mode="mean").goodness["heights"]
+    assert good < 0.1 < 0.25 < bad
+
+
+def test_summit_definition_on_a_known_map():
+    h = np.zeros((6, 6))
+    h[0, 0] = 1.0  # corner: a summit only when the map wraps around
+    h[3, 3] = 2.0
+    h[3, 2] = 1.9  # neighbour of (3, 3): not a summit
+    per = sf.find_summits(sf.Surface(h, (6e-6, 6e-6), periodic=True))
+    assert per.n == 2 and per.height[0] == 2.0 and per.x[0] == pytest.approx(3e-6)
+    assert per.curvature[0] == pytest.approx(-0.5 * ((-4.0) + (1.9 - 4.0)) / 1e-12)
+    assert per.prominence[0] == pytest.approx(0.1)
+    flat = sf.find_summits(sf.Surface(h, (6e-6, 6e-6), periodic=False))
+    assert flat.n == 1 and flat.area == pytest.approx(16e-12)
+    assert sf.find_summits(sf.Surface(h, (6e-6, 6e-6), True), min_prominence=0.5).n == 1
+
+
+def test_plane_detrend_removes_a_tilt():
+    s = _band(128, 8, 0)
+    x = np.arange(128)[:, None] * 1e-8 + np.arange(128)[None, :] * 2e-8 + 3e-6
+    h = sf.detrend(s.heights + x, "plane")
+    assert np.allclose(h, sf.detrend(s.heights, "plane"), atol=1e-18)
+    with pytest.raises(ValueError, match="detrend = 'cubic'"):
+        sf.detrend(h, "cubic")
+
+
+def test_two_surfaces_sum_and_slope():
+    a, b = _band(128, 8, 0), _band(128, 8, 1)
+    c = sf.composite(a, b)
+    assert np.allclose(c.heights, sf.detrend(a.heights) + sf.detrend(b.heights))
+    sm = sf.find_summits(c)
+    gx, gy = c.slopes
+    i, j = np.rint(sm.x / c.pixel_size[0]).astype(int), np.rint(sm.y / c.pixel_size[1]).astype(int)
+    assert np.allclose(sm.slope, np.hypot(gx[i, j], gy[i, j])) and np.all(sm.slope > 0)
+    with pytest.raises(ValueError, match="grids differ"):
+        sf.composite(a, _band(64, 8, 1))
+    with pytest.raises(ValueError, match="physical sizes differ"):
+        sf.composite(a, sf.Surface(b.heights, (L, 1.01 * L), True))
+
+
+def test_too_few_summits_is_an_error():
+    x = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    h = np.sin(x)[:, None] * np.sin(x)[None, :]  # 2 summits
+    with pytest.raises(ValueError, match="too few to fit"):
+        sf.fit(sf.Surface(h * 1e-6, (L, L), True))
+
+
+def test_read_files_units_and_errors(tmp_path):
+    s = _band(64, 8, 0)
+    txt = tmp_path / "map.txt"
+    np.savetxt(txt, s.heights * 1e6)  # heights in um
+    with pytest.raises(ValueError, match="no physical size.*--size"):
+        sf.read(txt)
+    with pytest.raises(ValueError, match="no length unit.*--unit"):
+        sf.read(txt, physical_sizes=(1.0, 1.0))
+    r = sf.read(txt, physical_sizes=(1000.0, 1000.0), unit="um")
+    assert r.physical_sizes == pytest.approx((L, L)) and np.allclose(r.heights.T, s.heights, rtol=1e-6, atol=1e-15)
+    # (SurfaceTopography's axis 0 is x: a text matrix has one line per y)
+    with pytest.raises(ValueError, match="no such file"):
+        sf.read(tmp_path / "missing.nc")
+    junk = tmp_path / "junk.dat"
+    junk.write_text("hello\n")
+    with pytest.raises(ValueError, match="not a topography file"):
+        sf.read(junk)
+
+
+def test_netcdf_float32_sizes_compose(tmp_path):
+    """SurfaceTopography's netCDF stores sizes in float32: two such files still compose."""
+    from SurfaceTopography.Generation import fourier_synthesis
+
+    files = []
+    for seed in (0, 1):
+        t = fourier_synthesis((64, 64), (0.3, 0.3), hurst=0.8, rms_height=1e-3, short_cutoff=0.03, unit="mm", rng=seed)
+        files.append(tmp_path / f"s{seed}.nc")
+        t.to_netcdf(str(files[-1]))
+    a, b = sf.read(files[0]), sf.read(files[1])
+    assert a.physical_sizes[0] != 0.3e-3 and a.physical_sizes == pytest.approx((0.3e-3, 0.3e-3))
+    assert sf.composite(a, b).heights.shape == (64, 64)
+
+
+def test_synthetic_validates_and_hits_rms():
+    s = sf.synthetic(128, L, hurst=0.7, rms_height=2e-6, seed=5)
+    assert 0.5 < s.heights.std() / 2e-6 < 1.5  # the rms of the expected PSD, not of one realisation
+    with pytest.raises(ValueError, match="hurst"):
+        sf.synthetic(64, L, hurst=1.5)
+    with pytest.raises(ValueError, match="nb_grid_pts"):
+        sf.synthetic(4, L)
+    with pytest.raises(ValueError, match="seed"):
+        sf.synthetic(64, L, seed=-1)
+
+
+def test_empirical_population_resamples_summits_jointly():
+    a, b = _band(256, 8, 0), _band(256, 8, 1)
+    res = sf.fit(a, b)
+    pop = sf.empirical_population(res, 5000, seed=1)
+    assert isinstance(pop, Population) and pop.n == 5000
+    pairs = set(zip(res.summits.depth.round(18), res.summits.radius.round(12)))
+    assert all((r, R) in pairs for r, R in zip(pop.r.round(18), pop.R.round(12)))
+    # steeper summits get larger u: rank correlation of slope and u is +1 per summit
+    by_r = {round(r, 18): u for r, u in zip(pop.r, pop.u)}
+    s = res.summits
+    us = np.array([by_r.get(round(d, 18), np.nan) for d in s.depth])
+    ok = np.isfinite(us)
+    assert np.all(np.diff(us[ok][np.argsort(s.slope[ok])]) >= -1e-12)
+    # one surface: orientations independent of the summits, cos u uniform (isotropic base)
+    pop1 = sf.empirical_population(sf.fit(a), 20000, seed=2)
+    assert abs(np.cos(pop1.u).mean() - 0.5) < 4 * math.sqrt(1 / 12 / 20000)
+
+
+def test_fit_1024_under_10_s():
+    import time
+
+    s = sf.synthetic(1024, L, hurst=0.8, rms_height=1e-6, short_cutoff=8 * L / 1024, seed=0)
+    t0 = time.perf_counter()
+    sf.fit(s)
+    assert time.perf_counter() - t0 < 10.0
