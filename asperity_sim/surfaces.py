@@ -13,7 +13,9 @@ Composite topography
     physical size (SPEC §2: the composite topography).  All lengths are converted to metres.
 Detrending
     ``"plane"`` (default) removes the least-squares plane, ``"mean"`` the mean height only,
-    ``"none"`` nothing.  Detrending is applied to each surface before the sum.
+    ``"none"`` nothing.  Detrending is applied to each surface before the sum.  A periodic
+    map (synthetic surfaces) has no plane trend: ``"plane"`` removes its mean only, since
+    a tilt removed from it would put a step at its edges.
 Summit
     A pixel strictly higher than each of its 8 neighbours (periodic surfaces wrap around,
     otherwise the border pixels are never summits), whose *local prominence* (height minus
@@ -209,6 +211,8 @@ def composite(surface, other=None, detrend_mode: str = "plane") -> Surface:
     a relative ``SIZE_RTOL``; otherwise a one-line :class:`SurfaceError`.
     """
     a = _as_surface(surface)
+    if detrend_mode == "plane" and a.periodic and (other is None or _as_surface(other).periodic):
+        detrend_mode = "mean"  # a periodic map has no plane trend; removing one would put a step at its edge
     ha = detrend(a.heights, detrend_mode)
     if other is None:
         return Surface(ha, a.physical_sizes, a.periodic, a.source)
@@ -437,17 +441,22 @@ class FitResult:
                "R_m": "mean of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
                "R_sigma": "s.d. of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2"}
         if name in how:
-            return (f"fitted: {how[name]}; stderr {self.stderr[name]:.3g} (bootstrap, {s.get('bootstrap')} "
-                    f"resamples)" if name != "N" else f"fitted: {how[name]}; stderr {self.stderr[name]:.3g} (Poisson)")
+            from .scene import format_quantity
+
+            unit = InterfaceParams.units()[name]
+            se = format_quantity(self.stderr[name], unit) if unit != "1" else f"{self.stderr[name]:.3g}"
+            how_se = "Poisson, sqrt(n)/area" if name == "N" else f"bootstrap, {s.get('bootstrap')} resamples"
+            return f"fitted: {how[name]}; stderr {se} ({how_se})"
         return f"not identified from topography: {self.source_of_rest}"
 
 
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
-        min_prominence: float = 0.0, bootstrap: int = 200, seed: int = 0) -> FitResult:
+        min_prominence: float = 0.0, bootstrap: int = 200, seed: int = 0, base_label: str | None = None) -> FitResult:
     """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed).
 
     topography, other : Surface, SurfaceTopography Topography or file name
     base : preset name or InterfaceParams giving the parameters topography does not identify
+    base_label : where ``base`` came from, for the report (e.g. "scene my.toml")
     bootstrap : resamples of the summits for the standard errors (>= 10)
     """
     from . import presets
@@ -457,7 +466,7 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
             raise SurfaceError(f"preset = {base!r} is not known (valid: {', '.join(presets.TABLE1)})")
         rest, source = presets.TABLE1[base], f"preset {base}"
     elif isinstance(base, InterfaceParams):
-        rest, source = base, "given parameters"
+        rest, source = base, base_label or "given parameters"
     else:
         raise SurfaceError(f"base = {base!r} is not a preset name or InterfaceParams")
     if isinstance(bootstrap, bool) or not isinstance(bootstrap, numbers.Integral) or bootstrap < 10:
@@ -518,3 +527,93 @@ def empirical_population(result: FitResult, n: int, seed: int = 0):
     else:
         u, phi = orientation_from_uniform(p, rng.random(n), rng.random(n))
     return Population.from_arrays(p, s.depth[pick], s.radius[pick], u, phi)
+
+
+# -- scene and figure -------------------------------------------------------------------
+
+def _toml_string(text: str) -> str:
+    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def default_closure(params: InterfaceParams, fraction: float = 0.1) -> float:
+    """Closure [m] at which the fraction ``fraction`` of the summits (the highest) has been reached:
+    the gamma quantile of the depths (SPEC §2)."""
+    return float(stats.gamma.ppf(fraction, params.alpha + 1.0, scale=params.beta))
+
+
+def scene_text(result: FitResult, *, closure: float | None = None, increments: int = 20, n: int = 100_000,
+               seed: int = 0, command: str = "") -> str:
+    """A scene file (TOML, units on every quantity, a comment on where each value came from).
+
+    The path is a normal closure under displacement control, Delta_1 from 0 to ``closure`` [m]
+    (default: the depth of the highest 10 % of the summits, :func:`default_closure`).
+    """
+    from .scene import format_quantity
+
+    p = result.params
+    closure = default_closure(p) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
+    units = InterfaceParams.units()
+    s, g = result.settings, result.goodness
+    lines = [f"# Scene fitted by asperity_sim.surfaces from {s.get('source', '?')}",
+             f"# {command}" if command else "#",
+             f"# {g['n']} summits (8-neighbour maxima, min prominence {s.get('min_prominence', 0):.3g} m, "
+             f"detrend {s.get('detrend')}); KS statistic of depths vs gamma {g['heights']:.3f}, "
+             f"of radii vs truncated Gaussian {g['radii']:.3f}",
+             f"# Parameters not identified by a topography come from {result.source_of_rest}.",
+             "# Run:  asperity-sim run THIS_FILE.toml",
+             f"title = {_toml_string('normal closure of the fitted interface (' + str(s.get('source', '?')) + ')')}",
+             "", "[parameters]"]
+    for name, unit in units.items():
+        v = getattr(p, name)
+        value = _toml_string(format_quantity(v, unit)) if unit != "1" else repr(float(v))
+        lines.append(f"{name} = {value}  # {result.source_of(name)}")
+    lines += ["", "[run]", f"n = {int(n)}", f"seed = {int(seed)}", 'sampler = "random"', 'law = "paper"',
+              'policy = "follow"', "", "[path]", 'name = "normal_closure"', "", "[[path.stages]]",
+              'name = "normal closure"', f"increments = {int(increments)}",
+              f"Delta_1 = {_toml_string(format_quantity(closure, 'm'))}  # depth reached by 10 % of the summits",
+              'Delta_2 = "0 um"', 'Delta_3 = "0 um"', ""]
+    return "\n".join(lines)
+
+
+def plot_fit(result: FitResult):
+    """Figure of a fit: summit map, QQ plots of depths (gamma) and radii (truncated Gaussian), histogram."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    p, sm = result.params, result.summits
+    fig, ax = plt.subplots(2, 2, figsize=(10, 8.5))
+    surf = result.surface
+    if surf is not None:
+        Lx, Ly = surf.physical_sizes
+        im = ax[0, 0].imshow(surf.heights.T * 1e6, origin="lower", extent=(0, Lx * 1e3, 0, Ly * 1e3), cmap="gray")
+        fig.colorbar(im, ax=ax[0, 0], label="composite height [um]")
+    ax[0, 0].plot(sm.x * 1e3, sm.y * 1e3, ".", ms=2, color="tab:red")
+    ax[0, 0].set(xlabel="x [mm]", ylabel="y [mm]", title=f"{sm.n} summits (8-neighbour maxima)")
+    prob = (np.arange(1, sm.n + 1) - 0.5) / sm.n
+    d = np.sort(sm.depth)
+    q = stats.gamma.ppf(prob, p.alpha + 1.0, scale=p.beta)
+    ax[0, 1].plot(q * 1e6, d * 1e6, ".", ms=3)
+    ax[0, 1].plot([0, d.max() * 1e6], [0, d.max() * 1e6], "k--", lw=1)
+    ax[0, 1].set(xlabel="gamma quantile [um]", ylabel="summit depth [um]",
+                 title=f"QQ depth: alpha = {p.alpha:.3g}, beta = {p.beta * 1e6:.3g} um, KS = {result.goodness['heights']:.3f}")
+    rad = np.sort(sm.radius)
+    lo, hi = p.R_bounds
+    a, b = special.ndtr((lo - p.R_m) / p.R_sigma), special.ndtr((hi - p.R_m) / p.R_sigma)
+    qr = p.R_m + p.R_sigma * special.ndtri(a + prob * (b - a))
+    ax[1, 0].plot(qr * 1e6, rad * 1e6, ".", ms=3)
+    ax[1, 0].plot([qr.min() * 1e6, qr.max() * 1e6], [qr.min() * 1e6, qr.max() * 1e6], "k--", lw=1)
+    ax[1, 0].set(xlabel="truncated Gaussian quantile [um]", ylabel="summit radius 1/kappa [um]",
+                 title=f"QQ radius: R_m = {p.R_m * 1e6:.3g} um, R_sigma = {p.R_sigma * 1e6:.3g} um, "
+                       f"KS = {result.goodness['radii']:.3f}")
+    ax[1, 1].hist(sm.depth * 1e6, bins=40, density=True, alpha=0.6, label="summits")
+    x = np.linspace(0, sm.depth.max(), 200)
+    ax[1, 1].plot(x * 1e6, stats.gamma.pdf(x, p.alpha + 1.0, scale=p.beta) * 1e-6, label="fitted gamma, Eq. (1)")
+    ax[1, 1].set(xlabel="depth below the highest summit r [um]", ylabel="density [1/um]",
+                 title=f"N = {p.N * 1e-6:.4g} /mm2")
+    ax[1, 1].legend()
+    for a_ in ax.flat:
+        a_.title.set_fontsize(9)
+    fig.tight_layout()
+    return fig

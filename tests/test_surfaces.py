@@ -133,11 +133,14 @@ def test_plane_detrend_removes_a_tilt():
 def test_two_surfaces_sum_and_slope():
     a, b = _band(128, 8, 0), _band(128, 8, 1)
     c = sf.composite(a, b)
-    assert np.allclose(c.heights, sf.detrend(a.heights) + sf.detrend(b.heights))
+    assert np.allclose(c.heights, sf.detrend(a.heights, "mean") + sf.detrend(b.heights, "mean"))
     sm = sf.find_summits(c)
     gx, gy = c.slopes
     i, j = np.rint(sm.x / c.pixel_size[0]).astype(int), np.rint(sm.y / c.pixel_size[1]).astype(int)
     assert np.allclose(sm.slope, np.hypot(gx[i, j], gy[i, j])) and np.all(sm.slope > 0)
+    # periodic maps: plane detrend is the mean only (no step at the wrap-around edge)
+    assert sf.composite(a).heights.mean() == pytest.approx(0, abs=1e-20)
+    assert np.allclose(sf.composite(a).heights, a.heights - a.heights.mean())
     with pytest.raises(ValueError, match="grids differ"):
         sf.composite(a, _band(64, 8, 1))
     with pytest.raises(ValueError, match="physical sizes differ"):
@@ -220,3 +223,86 @@ def test_fit_1024_under_10_s():
     t0 = time.perf_counter()
     sf.fit(s)
     assert time.perf_counter() - t0 < 10.0
+
+
+# -- command line -----------------------------------------------------------------------
+
+def _write_pair(tmp_path, n=256):
+    from SurfaceTopography.Generation import fourier_synthesis
+
+    files = []
+    for seed in (1, 2):
+        t = fourier_synthesis((n, n), (0.5, 0.5), hurst=0.8, rms_height=1e-3, short_cutoff=8 * 0.5 / n,
+                              unit="mm", rng=seed)
+        files.append(tmp_path / f"s{seed}.nc")
+        t.to_netcdf(str(files[-1]))
+    return files
+
+
+def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
+    from asperity_sim.cli import main
+    from asperity_sim.scene import load_scene
+
+    a, b = _write_pair(tmp_path)
+    out, fig = tmp_path / "fit.toml", tmp_path / "fit.png"
+    assert main(["fit", str(a), str(b), "-o", str(out), "--plot", str(fig), "--preset", "S1"]) == 0
+    assert fig.stat().st_size > 10_000
+    scene = load_scene(out)
+    res = sf.fit(sf.read(a), sf.read(b), base="S1")
+    for name in sf.IDENTIFIED:  # the scene keeps 6 significant digits
+        assert getattr(scene.params, name) == pytest.approx(getattr(res.params, name), rel=1e-5)
+    assert scene.params.G == presets.S1.G and scene.params.nu == presets.S1.nu
+    text = out.read_text()
+    assert text.count("not identified from topography: preset S1") == len(sf.NOT_IDENTIFIED)
+    assert 'R_m = "' in text and ' um"' in text  # quantities carry units
+    assert "summits" in capsys.readouterr().out
+
+
+def test_cli_fit_scene_supplies_the_rest(tmp_path):
+    from asperity_sim.cli import main
+    from asperity_sim.scene import load_scene
+
+    a, _ = _write_pair(tmp_path, 128)
+    base = tmp_path / "base.toml"
+    base.write_text('[parameters]\npreset = "R2"\nmu = 0.4\n[path]\n[[path.stages]]\nincrements = 1\n'
+                    'Delta_1 = "1 um"\nDelta_2 = "0 um"\nDelta_3 = "0 um"\n')
+    out = tmp_path / "fit.toml"
+    assert main(["fit", str(a), "-o", str(out), "--scene", str(base)]) == 0
+    p = load_scene(out).params
+    assert p.mu == 0.4 and p.G == presets.R2.G and p.r_o == pytest.approx(presets.R2.r_o)
+    assert f"scene {base}" in out.read_text()
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["missing.nc"], "no such file"),
+    (["junk.dat"], "not a topography file"),
+    (["plain.txt"], "no physical size.*--size"),
+    (["plain.txt", "--size", "0.5"], "no length unit.*--unit"),
+    (["s1.nc", "plain.txt", "--size", "0.5,0.6", "--unit", "mm"], "physical sizes differ"),
+    (["s1.nc", "small.txt", "--size", "0.5", "--unit", "mm"], "grids differ"),
+    (["flat.txt", "--size", "0.5", "--unit", "mm"], "too few to fit"),
+    (["s1.nc", "--min-prominence", "5 GPa"], "min-prominence"),
+])
+def test_cli_fit_bad_input_exits_1(tmp_path, capsys, extra, message):
+    from asperity_sim.cli import main
+
+    _write_pair(tmp_path, 64)
+    (tmp_path / "junk.dat").write_text("hello\n")
+    np.savetxt(tmp_path / "plain.txt", np.random.default_rng(0).random((64, 64)))
+    np.savetxt(tmp_path / "small.txt", np.random.default_rng(0).random((32, 32)))
+    np.savetxt(tmp_path / "flat.txt", np.outer(np.sin(np.linspace(0, 6.28, 64)), np.sin(np.linspace(0, 6.28, 64))))
+    args = ["fit"] + [str(tmp_path / e) if e.endswith((".nc", ".txt", ".dat")) else e for e in extra]
+    assert main(args + ["-o", str(tmp_path / "out.toml")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and __import__("re").search(message, err), err
+    assert not (tmp_path / "out.toml").exists()
+
+
+@pytest.mark.slow
+def test_cli_fit_scene_runs(tmp_path):
+    from asperity_sim.cli import main
+
+    a, b = _write_pair(tmp_path, 128)
+    out = tmp_path / "fit.toml"
+    assert main(["fit", str(a), str(b), "-o", str(out)]) == 0
+    assert main(["run", str(out), "--n", "500", "-q", "-o", str(tmp_path / "run.nc")]) == 0
