@@ -233,8 +233,9 @@ def plot(ds):
     p = ds.pressure.values
     ax[0].set(xlabel="mean separation [um]", ylabel="mean pressure [MPa]", ylim=(p.min() / 3 / 1e6, p.max() * 3 / 1e6),
               title="closure")
+    a = ds.bem_area_fraction.values
     ax[1].set(xlabel="mean pressure [MPa]", ylabel="contact-area fraction [%]", xlim=(p.min() / 3 / 1e6, p.max() * 3 / 1e6),
-              title="contact area")
+              ylim=(100 * a.min() / 3, 100 * min(1.0, 3 * a.max())), title="contact area")
     for a in ax:
         a.legend()
         a.grid(alpha=0.3, which="both")

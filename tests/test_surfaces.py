@@ -306,3 +306,49 @@ def test_cli_fit_scene_runs(tmp_path):
     out = tmp_path / "fit.toml"
     assert main(["fit", str(a), str(b), "-o", str(out)]) == 0
     assert main(["run", str(out), "--n", "500", "-q", "-o", str(tmp_path / "run.nc")]) == 0
+
+
+# -- BEM scenario -----------------------------------------------------------------------
+
+def test_bem_scenario_quick(tmp_path, capsys):
+    """scenarios/bem_closure.py at tiny size: outputs with units, BEM on the intended area range."""
+    pytest.importorskip("tamaas")
+    import importlib
+    import sys
+    from pathlib import Path
+
+    import xarray as xr
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))
+    bem_closure = importlib.import_module("bem_closure")
+    assert bem_closure.main(["--quick", "--outdir", str(tmp_path)]) == 0
+    assert (tmp_path / "bem_closure.png").stat().st_size > 10_000
+    ds = xr.open_dataset(tmp_path / "bem_closure.nc", engine="netcdf4")
+    for v in list(ds.data_vars) + list(ds.coords):
+        assert ds[v].attrs.get("units") and ds[v].attrs.get("long_name"), v
+    a = ds.bem_area_fraction.values
+    assert np.all(np.diff(a) > 0) and 5e-4 < a[0] < 5e-3 and 0.03 < a[-1] < 0.3  # 0.1 % .. 10 % (Persson estimate)
+    assert np.all(np.diff(ds.bem_closure.values) > 0)
+    # the models answer at the BEM pressures: sigma_1 at the model closure is the BEM pressure
+    assert np.all(np.isfinite(ds.closure_ratio.values)) and np.all(ds.model_closure.values > 0)
+    assert "| p [MPa] |" in capsys.readouterr().out
+
+
+def test_bem_hertz_sanity():
+    """The tamaas call used by the scenario reproduces Hertz for one sphere (area within pixel error)."""
+    pytest.importorskip("tamaas")
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))
+    import bem_closure
+
+    n, size, R, E_star = 256, 1e-3, 5e-3, 100e9
+    x = (np.arange(n) + 0.5) * size / n - size / 2
+    h = -(x[:, None] ** 2 + x[None, :] ** 2) / (2 * R)
+    p = 2e5  # mean pressure [Pa] over the cell
+    closure, _, area, _ = bem_closure.bem(h, (size, size), E_star, [p], 1e-12)[:, 0]
+    a = (3 * p * size**2 * R / (4 * E_star)) ** (1 / 3)  # Hertz contact radius
+    assert area * size**2 == pytest.approx(math.pi * a**2, rel=0.05)
+    # periodic images add a uniform compliance, so the closure is only near Hertz's a²/R
+    assert closure == pytest.approx(a**2 / R, rel=0.15)
