@@ -486,7 +486,8 @@ def _cmd_fit(args) -> int:
     out.write_text(text, encoding="utf-8")
     p, se, g = res.params, res.stderr, res.goodness
     print(f"{res.summits.n} summits on {res.surface.nb_grid_pts[0]} x {res.surface.nb_grid_pts[1]} points "
-          f"({seconds:.2f} s); KS depths {g['heights']:.3f}, radii {g['radii']:.3f}")
+          f"({seconds:.2f} s); KS depths {g['heights']:.3f}, radii {g['radii']:.3f}; "
+          f"rank correlation depth-radius {g['spearman_depth_radius']:.3f}")
     for name, unit in (("N", "m-2"), ("alpha", "1"), ("beta", "m"), ("R_m", "m"), ("R_sigma", "m")):
         print(f"  {name:8s} = {getattr(p, name):.5g} ± {se[name]:.2g} {unit}")
     print(f"  not identified ({', '.join(surfaces.NOT_IDENTIFIED)}): from {res.source_of_rest}")

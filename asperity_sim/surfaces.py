@@ -416,7 +416,8 @@ class FitResult:
     params : InterfaceParams (identified fields fitted, others from ``source_of_rest``)
     stderr : {field: standard error} for the identified fields [units of the field]
     goodness : {"heights": KS statistic of depths vs gamma, "radii": KS of radii vs truncated Gaussian,
-               "n": summits} [1]
+               "n": summits, "spearman_depth_radius": rank correlation of depth and radius, 0 if
+               independent as SPEC §2 assumes} [1]
     summits : Summits
     identified, not_identified : field names; source_of_rest : e.g. "preset R1"
     surface : the composite Surface;  settings : detrend, min_prominence, bootstrap size, seed
@@ -495,7 +496,9 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     ks_h = stats.kstest(depth, stats.gamma(params.alpha + 1.0, scale=params.beta).cdf).statistic
     ks_r = stats.kstest(radius, lambda x: _truncnorm_cdf(x, params.R_m, params.R_sigma)).statistic \
         if params.R_sigma > 0 else float("nan")
-    goodness = {"heights": float(ks_h), "radii": float(ks_r), "n": summits.n}
+    # SPEC §2 takes heights and radii independent: their rank correlation over the summits tests that
+    rho = stats.spearmanr(depth, radius).statistic
+    goodness = {"heights": float(ks_h), "radii": float(ks_r), "n": summits.n, "spearman_depth_radius": float(rho)}
     settings = {"detrend": detrend_mode, "min_prominence": float(min_prominence), "bootstrap": int(bootstrap),
                 "seed": int(seed), "source": surf.source}
     return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings)
@@ -558,7 +561,8 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
              f"# {command}" if command else "#",
              f"# {g['n']} summits (8-neighbour maxima, min prominence {s.get('min_prominence', 0):.3g} m, "
              f"detrend {s.get('detrend')}); KS statistic of depths vs gamma {g['heights']:.3f}, "
-             f"of radii vs truncated Gaussian {g['radii']:.3f}",
+             f"of radii vs truncated Gaussian {g['radii']:.3f}; rank correlation of depth and radius "
+             f"{g['spearman_depth_radius']:.3f} (the model takes them independent)",
              f"# Parameters not identified by a topography come from {result.source_of_rest}.",
              "# Run:  asperity-sim run THIS_FILE.toml",
              f"title = {_toml_string('normal closure of the fitted interface (' + str(s.get('source', '?')) + ')')}",

@@ -352,3 +352,20 @@ def test_bem_hertz_sanity():
     assert area * size**2 == pytest.approx(math.pi * a**2, rel=0.05)
     # periodic images add a uniform compliance, so the closure is only near Hertz's a²/R
     assert closure == pytest.approx(a**2 / R, rel=0.15)
+
+
+def test_depth_radius_dependence_is_detected():
+    """Nayak: higher summits are sharper, so depth and radius are positively rank-correlated on a
+    Gaussian surface, against the independence SPEC §2 assumes; the fit reports it."""
+    rhos = [sf.fit(_band(512, 8, seed)).goodness["spearman_depth_radius"] for seed in range(3)]
+    assert all(r > 0.1 for r in rhos), rhos
+
+
+def test_missing_surfacetopography_says_how_to_install(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "SurfaceTopography", None)
+    with pytest.raises(ValueError, match=r"pip install \"asperity-sim\[surfaces\]\""):
+        sf.read("anything.nc")
+    with pytest.raises(ValueError, match="needs SurfaceTopography"):
+        sf.synthetic(64, L)
