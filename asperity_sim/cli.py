@@ -113,7 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--unit", help="length unit of heights and size (m, mm, um, nm), when the file does not give it")
     f.add_argument("--detrend", default="plane", choices=("plane", "mean", "none"), help="default plane")
     f.add_argument("--min-prominence", default="0 m", metavar="LENGTH",
-                   help="smallest summit height above its 8 neighbours, e.g. \"5 nm\" (default 0)")
+                   help="smallest summit height above the rest of its window, e.g. \"5 nm\" (default 0)")
+    f.add_argument("--window", type=_int_at_least(1), default=1, metavar="K",
+                   help="a summit is the highest point of the (2K+1)² pixel square around it (default 1: the 8 "
+                        "neighbours; raise it against instrument noise)")
     f.add_argument("--closure", metavar="LENGTH", help="largest Delta_1 of the scene's path, e.g. \"2 um\" "
                                                         "(default: depth reached by 10 %% of the summits)")
     f.add_argument("--bootstrap", type=_int_at_least(10), default=200, help="bootstrap resamples (default 200)")
@@ -475,7 +478,7 @@ def _cmd_fit(args) -> int:
         base, label = load_scene(args.scene).params, f"scene {args.scene}"
     tops = [surfaces.read(p, physical_sizes=size, unit=args.unit) for p in args.surfaces]
     t0 = time.perf_counter()
-    res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom,
+    res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
                        bootstrap=args.bootstrap, seed=args.seed, base_label=label)
     seconds = time.perf_counter() - t0
     command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}"

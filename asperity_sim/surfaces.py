@@ -17,9 +17,11 @@ Detrending
     map (synthetic surfaces) has no plane trend: ``"plane"`` removes its mean only, since
     a tilt removed from it would put a step at its edges.
 Summit
-    A pixel strictly higher than each of its 8 neighbours (periodic surfaces wrap around,
-    otherwise the border pixels are never summits), whose *local prominence* (height minus
-    the highest of the 8 neighbours) is at least ``min_prominence`` [m] (default 0).
+    A pixel strictly higher than every other pixel of the (2 window + 1)² square around it
+    (``window = 1``, the default: its 8 neighbours; periodic surfaces wrap around, otherwise
+    the ``window`` border rows and columns are never summits), whose *local prominence*
+    (height minus the highest other pixel of the square) is at least ``min_prominence`` [m]
+    (default 0).  A larger window suppresses the one-pixel maxima of instrument noise.
 Summit curvature and radius
     kappa = -(h_xx + h_yy)/2 [1/m], the mean of the two principal curvatures, from the
     5-point discrete Laplacian at the summit; radius R = 1/kappa [m].
@@ -273,9 +275,6 @@ def synthetic(nb_grid_pts=512, physical_size=1e-3, *, hurst=0.8, rms_height=None
 
 # -- summits --------------------------------------------------------------------------
 
-_NEIGHBOURS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
-
-
 @dataclass(frozen=True)
 class Summits:
     """Identified summits of a composite topography (one entry per summit, sorted by height, highest first).
@@ -315,47 +314,53 @@ class Summits:
         return self.n / self.area
 
 
-def find_summits(surface, min_prominence: float = 0.0) -> Summits:
-    """Summits of a composite :class:`Surface` (8-neighbour strict maxima; see the module docstring)."""
+def find_summits(surface, min_prominence: float = 0.0, window: int = 1) -> Summits:
+    """Summits of a composite :class:`Surface` (see the module docstring).
+
+    A summit is strictly higher than every other pixel of the (2 window + 1)² square around it
+    (window = 1: the 8 neighbours) and at least ``min_prominence`` [m] higher than the highest of them.
+    """
+    from scipy import ndimage
+
     s = _as_surface(surface)
     min_prominence = check_real("min_prominence [m]", min_prominence, 0.0)
+    if isinstance(window, bool) or not isinstance(window, numbers.Integral) or not 1 <= window <= 64:
+        raise SurfaceError(f"window = {window!r} is out of range (valid range: integer in [1, 64] pixels)")
+    K = int(window)
     h = s.heights
     nx, ny = h.shape
     dx, dy = s.pixel_size
-    if s.periodic:
-        hp = np.pad(h, 1, mode="wrap")
-        inner = (slice(1, nx + 1), slice(1, ny + 1))
-        area = s.area
-    else:
-        if nx < 3 or ny < 3:
-            raise SurfaceError(f"{s.source}: grid {nx} x {ny} is too small (valid range: at least 3 x 3 points)")
-        hp = h
-        inner = (slice(1, nx - 1), slice(1, ny - 1))
-        area = (nx - 2) * dx * (ny - 2) * dy
-    c = hp[inner]
-    top = np.full(c.shape, -np.inf)
-    for i, j in _NEIGHBOURS:  # 8 vectorised comparisons, no loop over pixels
-        nb = hp[inner[0].start + i:inner[0].stop + i, inner[1].start + j:inner[1].stop + j]
-        np.maximum(top, nb, out=top)
-    prom = c - top
+    if not s.periodic and (nx <= 2 * K or ny <= 2 * K):
+        raise SurfaceError(f"{s.source}: grid {nx} x {ny} is too small for window {K} "
+                           f"(valid range: more than {2 * K} x {2 * K} points)")
+    footprint = np.ones((2 * K + 1, 2 * K + 1), dtype=bool)
+    footprint[K, K] = False
+    # highest other pixel of the window (C loop of scipy.ndimage, no Python loop over pixels)
+    top = ndimage.maximum_filter(h, footprint=footprint, mode="wrap" if s.periodic else "nearest")
+    prom = h - top
     mask = prom > 0.0
     if min_prominence > 0.0:
         mask &= prom >= min_prominence
+    if s.periodic:
+        area = s.area
+    else:  # the border pixels never qualify: their window is not complete
+        mask[:K], mask[-K:], mask[:, :K], mask[:, -K:] = False, False, False, False
+        area = (nx - 2 * K) * dx * (ny - 2 * K) * dy
     ii, jj = np.nonzero(mask)
-    pi, pj = ii + inner[0].start, jj + inner[1].start  # indices in hp
-    z = hp[pi, pj]
-    hxx = (hp[pi + 1, pj] - 2 * z + hp[pi - 1, pj]) / dx**2
-    hyy = (hp[pi, pj + 1] - 2 * z + hp[pi, pj - 1]) / dy**2
+    z = h[ii, jj]
+    ip, im = (ii + 1) % nx, (ii - 1) % nx  # inside the border for a non-periodic map
+    jp, jm = (jj + 1) % ny, (jj - 1) % ny
+    hxx = (h[ip, jj] - 2 * z + h[im, jj]) / dx**2
+    hyy = (h[ii, jp] - 2 * z + h[ii, jm]) / dy**2
     kappa = -0.5 * (hxx + hyy)
-    oi, oj = (ii, jj) if s.periodic else (ii + 1, jj + 1)  # indices in h
     if s.slopes is not None:
-        gx, gy = s.slopes[0][oi, oj], s.slopes[1][oi, oj]
+        gx, gy = s.slopes[0][ii, jj], s.slopes[1][ii, jj]
         slope, azimuth = np.hypot(gx, gy), np.mod(np.arctan2(gy, gx), 2 * np.pi)
     else:
         slope, azimuth = np.zeros(z.size), np.zeros(z.size)
     order = np.argsort(-z, kind="stable")
-    return Summits(x=(oi[order] + 0.0) * dx, y=(oj[order] + 0.0) * dy, height=z[order], curvature=kappa[order],
-                   slope=slope[order], azimuth=azimuth[order], prominence=prom[mask][order], area=area,
+    return Summits(x=(ii[order] + 0.0) * dx, y=(jj[order] + 0.0) * dy, height=z[order], curvature=kappa[order],
+                   slope=slope[order], azimuth=azimuth[order], prominence=prom[ii, jj][order], area=area,
                    pixel_size=(dx, dy))
 
 
@@ -436,7 +441,8 @@ class FitResult:
     def source_of(self, name: str) -> str:
         """Where the value of parameter ``name`` came from (one line, for scene comments)."""
         s = self.settings
-        how = {"N": "summits per unit area (8-neighbour maxima)",
+        k = 2 * s.get("window", 1) + 1
+        how = {"N": f"summits ({k}x{k}-window maxima) per unit area",
                "alpha": "gamma fit of summit depths below the highest summit (method of moments)",
                "beta": "gamma fit of summit depths below the highest summit (method of moments)",
                "R_m": "mean of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
@@ -452,12 +458,14 @@ class FitResult:
 
 
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
-        min_prominence: float = 0.0, bootstrap: int = 200, seed: int = 0, base_label: str | None = None) -> FitResult:
+        min_prominence: float = 0.0, window: int = 1, bootstrap: int = 200, seed: int = 0,
+        base_label: str | None = None) -> FitResult:
     """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed).
 
     topography, other : Surface, SurfaceTopography Topography or file name
     base : preset name or InterfaceParams giving the parameters topography does not identify
     base_label : where ``base`` came from, for the report (e.g. "scene my.toml")
+    min_prominence [m], window [pixels] : summit definition (:func:`find_summits`)
     bootstrap : resamples of the summits for the standard errors (>= 10)
     """
     from . import presets
@@ -473,10 +481,11 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     if isinstance(bootstrap, bool) or not isinstance(bootstrap, numbers.Integral) or bootstrap < 10:
         raise SurfaceError(f"bootstrap = {bootstrap!r} is out of range (valid range: integer >= 10)")
     surf = composite(topography, other, detrend_mode)
-    summits = find_summits(surf, min_prominence)
+    summits = find_summits(surf, min_prominence, window)
     if summits.n < MIN_SUMMITS:
         raise SurfaceError(f"{surf.source}: {summits.n} summits found, too few to fit "
-                           f"(valid range: at least {MIN_SUMMITS}; lower --min-prominence or use a larger map)")
+                           f"(valid range: at least {MIN_SUMMITS}; lower --min-prominence or --window, or use a "
+                           f"larger map)")
     depth, radius = summits.depth, summits.radius
     if not np.var(depth) > 0:
         raise SurfaceError(f"{surf.source}: all summits at the same height: the height distribution cannot be fitted")
@@ -499,7 +508,8 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     # SPEC §2 takes heights and radii independent: their rank correlation over the summits tests that
     rho = stats.spearmanr(depth, radius).statistic
     goodness = {"heights": float(ks_h), "radii": float(ks_r), "n": summits.n, "spearman_depth_radius": float(rho)}
-    settings = {"detrend": detrend_mode, "min_prominence": float(min_prominence), "bootstrap": int(bootstrap),
+    settings = {"detrend": detrend_mode, "min_prominence": float(min_prominence), "window": int(window),
+                "bootstrap": int(bootstrap),
                 "seed": int(seed), "source": surf.source}
     return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings)
 
@@ -559,7 +569,8 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
     s, g = result.settings, result.goodness
     lines = [f"# Scene fitted by asperity_sim.surfaces from {s.get('source', '?')}",
              f"# {command}" if command else "#",
-             f"# {g['n']} summits (8-neighbour maxima, min prominence {s.get('min_prominence', 0):.3g} m, "
+             f"# {g['n']} summits (maxima of {2 * s.get('window', 1) + 1}x{2 * s.get('window', 1) + 1} windows, "
+             f"min prominence {s.get('min_prominence', 0):.3g} m, "
              f"detrend {s.get('detrend')}); KS statistic of depths vs gamma {g['heights']:.3f}, "
              f"of radii vs truncated Gaussian {g['radii']:.3f}; rank correlation of depth and radius "
              f"{g['spearman_depth_radius']:.3f} (the model takes them independent)",
@@ -594,7 +605,7 @@ def plot_fit(result: FitResult):
         im = ax[0, 0].imshow(surf.heights.T * 1e6, origin="lower", extent=(0, Lx * 1e3, 0, Ly * 1e3), cmap="gray")
         fig.colorbar(im, ax=ax[0, 0], label="composite height [um]")
     ax[0, 0].plot(sm.x * 1e3, sm.y * 1e3, ".", ms=2, color="tab:red")
-    ax[0, 0].set(xlabel="x [mm]", ylabel="y [mm]", title=f"{sm.n} summits (8-neighbour maxima)")
+    ax[0, 0].set(xlabel="x [mm]", ylabel="y [mm]", title=f"{sm.n} summits ({2 * result.settings.get('window', 1) + 1}-pixel square maxima)")
     prob = (np.arange(1, sm.n + 1) - 0.5) / sm.n
     d = np.sort(sm.depth)
     q = stats.gamma.ppf(prob, p.alpha + 1.0, scale=p.beta)

@@ -22,11 +22,15 @@ import math
 import numpy as np
 import pytest
 
-sf = pytest.importorskip("asperity_sim.surfaces")
-pytest.importorskip("SurfaceTopography")
+import importlib.util
 
-from asperity_sim import presets  # noqa: E402
-from asperity_sim.population import Population  # noqa: E402
+from asperity_sim import presets
+from asperity_sim import surfaces as sf
+from asperity_sim.population import Population
+
+# tests that read files or generate surfaces need the optional SurfaceTopography ([surfaces] extra)
+needs_st = pytest.mark.skipif(importlib.util.find_spec("SurfaceTopography") is None,
+                              reason='needs SurfaceTopography: pip install "asperity-sim[surfaces]"')
 
 L = 1e-3  # [m]
 
@@ -51,21 +55,25 @@ def _ratios(n, cutoff_px, seeds):
 
 @pytest.fixture(scope="module")
 def fine_ratios():
+    pytest.importorskip("SurfaceTopography")
     return _ratios(1024, 16, range(4))
 
 
+@needs_st
 def test_summit_density_and_curvature_match_nayak(fine_ratios):
     for name, r in zip(("summit density", "mean curvature"), fine_ratios):
         se = r.std(ddof=1) / math.sqrt(r.size)
         assert abs(r.mean() - 1.0) < 0.015 + 3 * se, f"{name}: finder / Nayak = {r.mean():.4f} ± {se:.4f}"
 
 
+@needs_st
 def test_finder_converges_with_sampling(fine_ratios):
     coarse = _ratios(1024, 8, range(2))
     for c, f in zip(coarse, fine_ratios):
         assert abs(c.mean() - 1.0) > abs(f.mean() - 1.0)
 
 
+@needs_st
 def test_fit_density_is_nayak_and_stderr_is_calibrated():
     """N is the Nayak density; bootstrap stderr of alpha and R_m agrees with the spread across surfaces."""
     fits = [sf.fit(_band(512, 8, seed), bootstrap=100, seed=seed) for seed in range(8)]
@@ -79,6 +87,7 @@ def test_fit_density_is_nayak_and_stderr_is_calibrated():
         assert 0.5 < boot / spread < 2.0, f"{name}: bootstrap {boot:.3g} vs spread across surfaces {spread:.3g}"
 
 
+@needs_st
 def test_fit_result_fields_and_not_identified():
     s = _band(256, 8, 3)
     res = sf.fit(s, base="S1")
@@ -97,6 +106,7 @@ def test_fit_result_fields_and_not_identified():
     assert math.isclose(p.N, res.summits.n / L**2)
 
 
+@needs_st
 def test_ks_statistic_detects_a_wrong_distribution():
     """The KS statistic of the fit is small for gamma-like depths and large for a two-level surface."""
     s = _band(256, 8, 1)
@@ -121,6 +131,7 @@ def test_summit_definition_on_a_known_map():
     assert sf.find_summits(sf.Surface(h, (6e-6, 6e-6), True), min_prominence=0.5).n == 1
 
 
+@needs_st
 def test_plane_detrend_removes_a_tilt():
     s = _band(128, 8, 0)
     x = np.arange(128)[:, None] * 1e-8 + np.arange(128)[None, :] * 2e-8 + 3e-6
@@ -130,6 +141,7 @@ def test_plane_detrend_removes_a_tilt():
         sf.detrend(h, "cubic")
 
 
+@needs_st
 def test_two_surfaces_sum_and_slope():
     a, b = _band(128, 8, 0), _band(128, 8, 1)
     c = sf.composite(a, b)
@@ -154,6 +166,7 @@ def test_too_few_summits_is_an_error():
         sf.fit(sf.Surface(h * 1e-6, (L, L), True))
 
 
+@needs_st
 def test_read_files_units_and_errors(tmp_path):
     s = _band(64, 8, 0)
     txt = tmp_path / "map.txt"
@@ -173,6 +186,7 @@ def test_read_files_units_and_errors(tmp_path):
         sf.read(junk)
 
 
+@needs_st
 def test_netcdf_float32_sizes_compose(tmp_path):
     """SurfaceTopography's netCDF stores sizes in float32: two such files still compose."""
     from SurfaceTopography.Generation import fourier_synthesis
@@ -187,6 +201,7 @@ def test_netcdf_float32_sizes_compose(tmp_path):
     assert sf.composite(a, b).heights.shape == (64, 64)
 
 
+@needs_st
 def test_synthetic_validates_and_hits_rms():
     s = sf.synthetic(128, L, hurst=0.7, rms_height=2e-6, seed=5)
     assert 0.5 < s.heights.std() / 2e-6 < 1.5  # the rms of the expected PSD, not of one realisation
@@ -198,6 +213,7 @@ def test_synthetic_validates_and_hits_rms():
         sf.synthetic(64, L, seed=-1)
 
 
+@needs_st
 def test_empirical_population_resamples_summits_jointly():
     a, b = _band(256, 8, 0), _band(256, 8, 1)
     res = sf.fit(a, b)
@@ -216,6 +232,7 @@ def test_empirical_population_resamples_summits_jointly():
     assert abs(np.cos(pop1.u).mean() - 0.5) < 4 * math.sqrt(1 / 12 / 20000)
 
 
+@needs_st
 def test_fit_1024_under_10_s():
     import time
 
@@ -239,6 +256,7 @@ def _write_pair(tmp_path, n=256):
     return files
 
 
+@needs_st
 def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
     from asperity_sim.cli import main
     from asperity_sim.scene import load_scene
@@ -258,6 +276,7 @@ def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
     assert "summits" in capsys.readouterr().out
 
 
+@needs_st
 def test_cli_fit_scene_supplies_the_rest(tmp_path):
     from asperity_sim.cli import main
     from asperity_sim.scene import load_scene
@@ -298,6 +317,7 @@ def test_cli_fit_bad_input_exits_1(tmp_path, capsys, extra, message):
     assert not (tmp_path / "out.toml").exists()
 
 
+@needs_st
 @pytest.mark.slow
 def test_cli_fit_scene_runs(tmp_path):
     from asperity_sim.cli import main
@@ -310,6 +330,7 @@ def test_cli_fit_scene_runs(tmp_path):
 
 # -- BEM scenario -----------------------------------------------------------------------
 
+@needs_st
 def test_bem_scenario_quick(tmp_path, capsys):
     """scenarios/bem_closure.py at tiny size: outputs with units, BEM on the intended area range."""
     pytest.importorskip("tamaas")
@@ -334,6 +355,7 @@ def test_bem_scenario_quick(tmp_path, capsys):
     assert "| p [MPa] |" in capsys.readouterr().out
 
 
+@needs_st
 def test_bem_hertz_sanity():
     """The tamaas call used by the scenario reproduces Hertz for one sphere (area within pixel error)."""
     pytest.importorskip("tamaas")
@@ -354,6 +376,7 @@ def test_bem_hertz_sanity():
     assert closure == pytest.approx(a**2 / R, rel=0.15)
 
 
+@needs_st
 def test_depth_radius_dependence_is_detected():
     """Nayak: higher summits are sharper, so depth and radius are positively rank-correlated on a
     Gaussian surface, against the independence SPEC §2 assumes; the fit reports it."""
@@ -369,3 +392,39 @@ def test_missing_surfacetopography_says_how_to_install(monkeypatch):
         sf.read("anything.nc")
     with pytest.raises(ValueError, match="needs SurfaceTopography"):
         sf.synthetic(64, L)
+
+
+@needs_st
+def test_read_fills_undefined_data_and_rejects_line_scans(tmp_path):
+    h = np.random.default_rng(0).random((64, 64))
+    h[10:12, 20:25] = np.nan
+    np.savetxt(tmp_path / "holes.txt", h)
+    s = sf.read(tmp_path / "holes.txt", physical_sizes=(1, 1), unit="mm")
+    assert np.all(np.isfinite(s.heights)) and s.heights.max() <= 1e-3
+    np.savetxt(tmp_path / "line.txt", h[0])
+    with pytest.raises(ValueError, match="line scan"):
+        sf.read(tmp_path / "line.txt", physical_sizes=(1,), unit="mm")
+
+
+@needs_st
+def test_window_removes_noise_summits():
+    """White noise of 1 % of the rms height adds one-pixel maxima near the smooth summits; a 7x7
+    window (3 pixels, well below the 16-pixel cutoff) brings the count back near the clean surface's."""
+    s = _band(512, 16, 0)
+    noisy = sf.Surface(s.heights + 0.01 * s.heights.std() * np.random.default_rng(1).standard_normal(s.heights.shape),
+                       s.physical_sizes, True)
+    clean, raw = sf.find_summits(s).n, sf.find_summits(noisy).n
+    kept, clean3 = sf.find_summits(noisy, window=3).n, sf.find_summits(s, window=3).n
+    assert raw > 1.5 * clean and abs(kept - clean3) < 0.05 * clean3 and abs(clean3 - clean) < 0.1 * clean, \
+        (clean, raw, kept, clean3)
+    with pytest.raises(ValueError, match="window"):
+        sf.find_summits(s, window=0)
+
+
+def test_window_border_and_prominence():
+    h = np.zeros((9, 9))
+    h[4, 4], h[4, 6] = 2.0, 1.5  # two maxima 2 pixels apart
+    surf = sf.Surface(h, (9e-6, 9e-6), periodic=False)
+    assert sf.find_summits(surf).n == 2
+    one = sf.find_summits(surf, window=2)
+    assert one.n == 1 and one.prominence[0] == pytest.approx(0.5) and one.area == pytest.approx(25e-12)
