@@ -516,10 +516,13 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
 
 # -- empirical population --------------------------------------------------------------
 
-def empirical_population(result: FitResult, n: int, seed: int = 0):
+def empirical_population(result: FitResult, n: int, seed: int = 0, joint: bool = True):
     """A Population that resamples the identified summits jointly (height, radius and slope together).
 
     Each of the n asperities is one summit drawn with replacement: r its depth [m], R its radius [m].
+    ``joint=False`` draws the depth, the radius and the slope of each asperity from three
+    independent draws instead: the data's marginals under the model's independence assumption
+    (SPEC §2), so comparing the two isolates the effect of that assumption.
     Orientation: with two surfaces, u = (pi/2) F^-1(slope rank), the model's marginal of u
     (Eq. 10 with the base b, c, d) at the mid-rank of the summit's slope, and phi the azimuth
     of grad h1, so u keeps the data's dependence on r and R; with one surface (all slopes 0)
@@ -532,14 +535,15 @@ def empirical_population(result: FitResult, n: int, seed: int = 0):
     s = result.summits
     rng = np.random.default_rng(seed)
     pick = rng.integers(0, s.n, size=int(n))
+    pick_R, pick_u = (pick, pick) if joint else (rng.integers(0, s.n, size=int(n)), rng.integers(0, s.n, size=int(n)))
     p = result.params
     if np.any(s.slope > 0):
         rank = (stats.rankdata(s.slope) - 0.5) / s.n
-        u, _ = orientation_from_uniform(p, 1.0 - rank[pick], np.zeros(n))  # steeper: larger u
-        phi = s.azimuth[pick]
+        u, _ = orientation_from_uniform(p, 1.0 - rank[pick_u], np.zeros(n))  # steeper: larger u
+        phi = s.azimuth[pick_u]
     else:
         u, phi = orientation_from_uniform(p, rng.random(n), rng.random(n))
-    return Population.from_arrays(p, s.depth[pick], s.radius[pick], u, phi)
+    return Population.from_arrays(p, s.depth[pick], s.radius[pick_R], u, phi)
 
 
 # -- scene and figure -------------------------------------------------------------------

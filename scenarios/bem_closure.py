@@ -6,8 +6,10 @@ own composite modulus E* = G/(1 - nu) (SPEC §5) is solved exactly by the tamaas
 boundary-element solver (Polonsky–Keer, periodic) at loads giving contact-area fractions from
 0.1 % to about 10 %.  The same composite is fitted (N, alpha, beta, R_m, R_sigma; the rest
 from preset R1) and two asperity models answer at the same mean pressures: the fitted
-parametric model (Population.sample) and the empirical population that resamples the
-identified summits (surfaces.empirical_population).
+parametric model (Population.sample), the empirical population that resamples the
+identified summits jointly (surfaces.empirical_population), and the same with depth and radius
+resampled independently ("independent": the data's marginals under the model's assumption of
+independence, SPEC §2), which separates the shape of the fitted densities from that assumption.
 
 Relations.  BEM: tamaas with E = E*, nu = 0 (its E/(1 - nu²) is then E*), rigid composite
 surface h; closure delta = max(h) - mean(u) (u the elastic surface, tamaas' displacement),
@@ -42,7 +44,7 @@ from asperity_sim.params import check_real
 from asperity_sim.population import Population
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
-MODELS = ("parametric", "empirical")
+MODELS = ("parametric", "empirical", "independent")
 L = 1e-3  # [m] side of the surfaces
 SURFACE = {"hurst": 0.8, "rms_height": 0.5e-6}  # each surface; cutoffs in pixels from the command line
 
@@ -145,10 +147,11 @@ def main(argv=None):
     pressures = np.geomspace(1e-3, 1e-1, args.loads) * E_star * rms_slope / 2.0
     bem_out = bem(h, res.surface.physical_sizes, E_star, pressures, args.tolerance)
     pops = {"parametric": Population.sample(params, args.n, seed=args.seed),
-            "empirical": surfaces.empirical_population(res, args.n, seed=args.seed)}
+            "empirical": surfaces.empirical_population(res, args.n, seed=args.seed),
+            "independent": surfaces.empirical_population(res, args.n, seed=args.seed, joint=False)}
     top = h.max() - h.mean()
-    cl = np.empty((2, args.loads))
-    af = np.empty((2, args.loads))
+    cl = np.empty((len(MODELS), args.loads))
+    af = np.empty((len(MODELS), args.loads))
     for i, name in enumerate(MODELS):
         for k, p in enumerate(pressures):
             cl[i, k] = closure_at(pops[name], p)
@@ -200,14 +203,15 @@ def main(argv=None):
 
 def table(ds) -> str:
     """Markdown table: BEM load and model/BEM ratios at each load."""
-    head = ("| p [MPa] | BEM area [%] | BEM closure [um] | closure ratio param. | closure ratio empir. "
-            "| area ratio param. | area ratio empir. | BEM time [s] |")
-    lines = [head, "|---|---|---|---|---|---|---|---|"]
+    models = [str(m) for m in ds.model.values]
+    head = ("| p [MPa] | BEM area [%] | BEM closure [um] | " + " | ".join(f"closure ratio {m}" for m in models)
+            + " | " + " | ".join(f"area ratio {m}" for m in models) + " | BEM time [s] |")
+    lines = [head, "|" + "---|" * (4 + 2 * len(models))]
     for k in range(ds.sizes["load"]):
         cr, ar = ds.closure_ratio.isel(load=k).values, ds.area_ratio.isel(load=k).values
         lines.append(f"| {float(ds.pressure[k]) / 1e6:.3g} | {100 * float(ds.bem_area_fraction[k]):.3g} | "
-                     f"{float(ds.bem_closure[k]) * 1e6:.3g} | {cr[0]:.3f} | {cr[1]:.3f} | {ar[0]:.3f} | {ar[1]:.3f} | "
-                     f"{float(ds.bem_seconds[k]):.2f} |")
+                     f"{float(ds.bem_closure[k]) * 1e6:.3g} | " + " | ".join(f"{v:.3f}" for v in cr) + " | "
+                     + " | ".join(f"{v:.3f}" for v in ar) + f" | {float(ds.bem_seconds[k]):.2f} |")
     return "\n".join(lines)
 
 
@@ -220,7 +224,7 @@ def plot(ds):
 
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
     top = float(ds.attrs["max_minus_mean_height_m"])
-    style = {"parametric": "-", "empirical": "--"}
+    style = {"parametric": "-", "empirical": "--", "independent": ":"}
     for m in ds.model.values:
         c = ds.sel(model=m)
         ok = c.curve_pressure.values > 0

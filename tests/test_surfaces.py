@@ -227,6 +227,16 @@ def test_empirical_population_resamples_summits_jointly():
     us = np.array([by_r.get(round(d, 18), np.nan) for d in s.depth])
     ok = np.isfinite(us)
     assert np.all(np.diff(us[ok][np.argsort(s.slope[ok])]) >= -1e-12)
+    # joint=False: depth and radius from independent draws (same marginals)
+    ind = sf.empirical_population(res, 20000, seed=1, joint=False)
+    assert set(ind.r.round(18)) <= set(res.summits.depth.round(18))
+    assert set(ind.R.round(12)) <= set(res.summits.radius.round(12))
+    from scipy import stats as st_
+
+    rho_joint = st_.spearmanr(sf.empirical_population(res, 20000, seed=1).r, sf.empirical_population(res, 20000,
+                                                                                                 seed=1).R).statistic
+    rho_ind = st_.spearmanr(ind.r, ind.R).statistic
+    assert abs(rho_ind) < 4 / math.sqrt(20000) < rho_joint
     # one surface: orientations independent of the summits, cos u uniform (isotropic base)
     pop1 = sf.empirical_population(sf.fit(a), 20000, seed=2)
     assert abs(np.cos(pop1.u).mean() - 0.5) < 4 * math.sqrt(1 / 12 / 20000)
