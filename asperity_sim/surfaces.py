@@ -221,9 +221,11 @@ def composite(surface, other=None, detrend_mode: str = "plane") -> Surface:
     b = _as_surface(other)
     if a.heights.shape != b.heights.shape:
         raise SurfaceError(f"grids differ: {a.source} has {a.heights.shape[0]} x {a.heights.shape[1]} points, "
-                           f"{b.source} {b.heights.shape[0]} x {b.heights.shape[1]} (the composite needs the same grid)")
+                           f"{b.source} {b.heights.shape[0]} x {b.heights.shape[1]} "
+                           "(the composite needs the same grid)")
     if not np.allclose(a.physical_sizes, b.physical_sizes, rtol=SIZE_RTOL, atol=0.0):
-        raise SurfaceError(f"physical sizes differ: {a.source} is {a.physical_sizes[0]:.6g} x {a.physical_sizes[1]:.6g} m, "
+        raise SurfaceError(f"physical sizes differ: {a.source} is "
+                           f"{a.physical_sizes[0]:.6g} x {a.physical_sizes[1]:.6g} m, "
                            f"{b.source} {b.physical_sizes[0]:.6g} x {b.physical_sizes[1]:.6g} m "
                            f"(relative tolerance {SIZE_RTOL:g})")
     hb = detrend(b.heights, detrend_mode)
@@ -249,7 +251,8 @@ def synthetic(nb_grid_pts=512, physical_size=1e-3, *, hurst=0.8, rms_height=None
 
     n = (nb_grid_pts, nb_grid_pts) if isinstance(nb_grid_pts, numbers.Integral) else tuple(nb_grid_pts)
     if len(n) != 2 or not all(isinstance(k, numbers.Integral) and not isinstance(k, bool) and k >= 8 for k in n):
-        raise SurfaceError(f"nb_grid_pts = {nb_grid_pts!r} is out of range (valid range: integer or pair of integers >= 8)")
+        raise SurfaceError(f"nb_grid_pts = {nb_grid_pts!r} is out of range "
+                           "(valid range: integer or pair of integers >= 8)")
     L = (physical_size, physical_size) if isinstance(physical_size, numbers.Real) else tuple(physical_size)
     L = tuple(check_real("physical_size [m]", v, 0.0, None, lo_open=True) for v in L)
     hurst = check_real("hurst", hurst, 0.0, 1.0, lo_open=True)
@@ -609,14 +612,16 @@ def plot_fit(result: FitResult):
         im = ax[0, 0].imshow(surf.heights.T * 1e6, origin="lower", extent=(0, Lx * 1e3, 0, Ly * 1e3), cmap="gray")
         fig.colorbar(im, ax=ax[0, 0], label="composite height [um]")
     ax[0, 0].plot(sm.x * 1e3, sm.y * 1e3, ".", ms=2, color="tab:red")
-    ax[0, 0].set(xlabel="x [mm]", ylabel="y [mm]", title=f"{sm.n} summits ({2 * result.settings.get('window', 1) + 1}-pixel square maxima)")
+    k = 2 * result.settings.get("window", 1) + 1
+    ax[0, 0].set(xlabel="x [mm]", ylabel="y [mm]", title=f"{sm.n} summits (maxima of {k}x{k} pixel squares)")
     prob = (np.arange(1, sm.n + 1) - 0.5) / sm.n
     d = np.sort(sm.depth)
     q = stats.gamma.ppf(prob, p.alpha + 1.0, scale=p.beta)
     ax[0, 1].plot(q * 1e6, d * 1e6, ".", ms=3)
     ax[0, 1].plot([0, d.max() * 1e6], [0, d.max() * 1e6], "k--", lw=1)
     ax[0, 1].set(xlabel="gamma quantile [um]", ylabel="summit depth [um]",
-                 title=f"QQ depth: alpha = {p.alpha:.3g}, beta = {p.beta * 1e6:.3g} um, KS = {result.goodness['heights']:.3f}")
+                 title=f"QQ depth: alpha = {p.alpha:.3g}, beta = {p.beta * 1e6:.3g} um, "
+                       f"KS = {result.goodness['heights']:.3f}")
     rad = np.sort(sm.radius)
     lo, hi = p.R_bounds
     a, b = special.ndtr((lo - p.R_m) / p.R_sigma), special.ndtr((hi - p.R_m) / p.R_sigma)

@@ -28,6 +28,7 @@ Expected run time: about 1 min at 512² (each BEM point a few seconds on one cor
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import sys
 import time
@@ -122,9 +123,7 @@ def _attrs(units, long_name):
 
 def main(argv=None):
     args = parse(argv)
-    try:
-        import tamaas  # noqa: F401
-    except ModuleNotFoundError:
+    if importlib.util.find_spec("tamaas") is None:
         print('bem_closure needs tamaas: pip install "asperity-sim[bem]"', file=sys.stderr)
         return 1
     from asperity_sim import surfaces
@@ -169,7 +168,8 @@ def main(argv=None):
             "model_closure": (("model", "load"), cl, _attrs("m", "model closure Delta_1 at the BEM pressure")),
             "model_mean_separation": (("model", "load"), top - cl,
                                       _attrs("m", "model mean separation max(h) - mean(h) - Delta_1")),
-            "model_area_fraction": (("model", "load"), af, _attrs("1", "model contact-area fraction at the BEM pressure")),
+            "model_area_fraction": (("model", "load"), af,
+                                    _attrs("1", "model contact-area fraction at the BEM pressure")),
             "closure_ratio": (("model", "load"), cl / bem_out[0], _attrs("1", "model / BEM closure at equal pressure")),
             "area_ratio": (("model", "load"), af / bem_out[2],
                            _attrs("1", "model / BEM contact-area fraction at equal pressure")),
@@ -238,7 +238,8 @@ def plot(ds):
     ax[0].set(xlabel="mean separation [um]", ylabel="mean pressure [MPa]", ylim=(p.min() / 3 / 1e6, p.max() * 3 / 1e6),
               title="closure")
     a = ds.bem_area_fraction.values
-    ax[1].set(xlabel="mean pressure [MPa]", ylabel="contact-area fraction [%]", xlim=(p.min() / 3 / 1e6, p.max() * 3 / 1e6),
+    ax[1].set(xlabel="mean pressure [MPa]", ylabel="contact-area fraction [%]",
+              xlim=(p.min() / 3 / 1e6, p.max() * 3 / 1e6),
               ylim=(100 * a.min() / 3, 100 * min(1.0, 3 * a.max())), title="contact area")
     for a in ax:
         a.legend()

@@ -438,3 +438,15 @@ def test_window_border_and_prominence():
     assert sf.find_summits(surf).n == 2
     one = sf.find_summits(surf, window=2)
     assert one.n == 1 and one.prominence[0] == pytest.approx(0.5) and one.area == pytest.approx(25e-12)
+
+
+def test_curvature_exact_on_a_paraboloid_with_rectangular_pixels():
+    """The 5-point Laplacian is exact for a quadratic: a paraboloid cap of radius R on a 96 x 64 grid
+    with dx != dy gives kappa = 1/R and radius R at its apex."""
+    nx, ny, Lx, Ly, R = 96, 64, 3e-4, 1e-4, 2e-3
+    x = (np.arange(nx) - 40) * Lx / nx
+    y = (np.arange(ny) - 30) * Ly / ny
+    h = -(x[:, None] ** 2 + y[None, :] ** 2) / (2 * R)
+    sm = sf.find_summits(sf.Surface(h, (Lx, Ly), periodic=False))
+    assert sm.n == 1 and sm.radius[0] == pytest.approx(R, rel=1e-9)
+    assert (sm.x[0], sm.y[0]) == pytest.approx((40 * Lx / nx, 30 * Ly / ny))
