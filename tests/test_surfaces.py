@@ -302,6 +302,7 @@ def test_cli_fit_scene_supplies_the_rest(tmp_path):
     assert f"scene {base}" in out.read_text()
 
 
+@needs_st
 @pytest.mark.parametrize("extra, message", [
     (["missing.nc"], "no such file"),
     (["junk.dat"], "not a topography file"),
@@ -450,3 +451,14 @@ def test_curvature_exact_on_a_paraboloid_with_rectangular_pixels():
     sm = sf.find_summits(sf.Surface(h, (Lx, Ly), periodic=False))
     assert sm.n == 1 and sm.radius[0] == pytest.approx(R, rel=1e-9)
     assert (sm.x[0], sm.y[0]) == pytest.approx((40 * Lx / nx, 30 * Ly / ny))
+
+
+def test_cli_fit_without_surfacetopography_exits_1(tmp_path, capsys, monkeypatch):
+    import sys
+
+    from asperity_sim.cli import main
+
+    monkeypatch.setitem(sys.modules, "SurfaceTopography", None)
+    np.savetxt(tmp_path / "m.txt", np.zeros((8, 8)))
+    assert main(["fit", str(tmp_path / "m.txt"), "-o", str(tmp_path / "o.toml")]) == 1
+    assert 'pip install "asperity-sim[surfaces]"' in capsys.readouterr().err
