@@ -7,6 +7,7 @@ Owns the user-facing commands (``python -m asperity_sim`` is the same)::
     asperity-sim info OUT.nc
     asperity-sim presets
     asperity-sim sweep SWEEP.toml [-o OUT.nc] [--scheduler tcp://host:port | --serial] [--workers 2] [--n N]
+    asperity-sim fit SURFACE [SURFACE2] -o SCENE.toml [--plot FIG.png] [--preset R1 | --scene S.toml]
 
 Every input is checked before anything runs or is written.  An error is one line on
 stderr (what, which value, what is allowed) and a non-zero exit status: 1 bad input or
@@ -96,6 +97,30 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--workers", type=_positive_int, default=2, help="workers of the local Dask cluster (default 2)")
     s.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+
+    f = sub.add_parser("fit", parents=[common], help="fit a scene to measured topographies (SurfaceTopography)",
+                       description="Fit N, alpha, beta, R_m, R_sigma to the summits of one topography file or of the "
+                                   "sum of two, and write a scene that asperity-sim run accepts. Needs "
+                                   "pip install \"asperity-sim[surfaces]\". See docs/surfaces.md.")
+    f.add_argument("surfaces", type=Path, nargs="+", metavar="SURFACE", help="one or two topography files")
+    f.add_argument("-o", "--output", type=Path, required=True, metavar="SCENE.toml", help="scene file to write")
+    f.add_argument("--plot", type=Path, metavar="FIG.png", help="figure: summit map, QQ plots, height histogram")
+    rest = f.add_mutually_exclusive_group()
+    rest.add_argument("--preset", default="R1", help="preset for the parameters topography does not identify "
+                                                     "(default R1)")
+    rest.add_argument("--scene", type=Path, metavar="S.toml", help="take those parameters from this scene instead")
+    f.add_argument("--size", metavar="LX[,LY]", help="physical size in --unit, when the file does not give it")
+    f.add_argument("--unit", help="length unit of heights and size (m, mm, um, nm), when the file does not give it")
+    f.add_argument("--detrend", default="plane", choices=("plane", "mean", "none"), help="default plane")
+    f.add_argument("--min-prominence", default="0 m", metavar="LENGTH",
+                   help="smallest summit height above the rest of its window, e.g. \"5 nm\" (default 0)")
+    f.add_argument("--window", type=_int_at_least(1), default=1, metavar="K",
+                   help="a summit is the highest point of the (2K+1)² pixel square around it (default 1: the 8 "
+                        "neighbours; raise it against instrument noise)")
+    f.add_argument("--closure", metavar="LENGTH", help="largest Delta_1 of the scene's path, e.g. \"2 um\" "
+                                                        "(default: depth reached by 10 %% of the summits)")
+    f.add_argument("--bootstrap", type=_int_at_least(10), default=200, help="bootstrap resamples (default 200)")
+    f.add_argument("--seed", type=_seed, default=0, help="bootstrap seed (default 0)")
     return p
 
 
@@ -426,7 +451,62 @@ def cmd_sweep(args) -> int:
     return 0
 
 
-COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep}
+# -- fit -----------------------------------------------------------------------------
+
+def _cmd_fit(args) -> int:
+    from . import surfaces
+    from .scene import load_scene, parse_quantity
+
+    if len(args.surfaces) > 2:
+        raise UsageError(f"{PROG} fit: error: {len(args.surfaces)} surfaces given (valid: one, or two to sum)")
+    out = _check_output(args.output, inputs=tuple(args.surfaces), suffixes=(".toml",))
+    if args.plot is not None:
+        _check_output(args.plot, inputs=tuple(args.surfaces), suffixes=(".png", ".pdf", ".svg"))
+    size = None
+    if args.size is not None:
+        try:
+            size = [float(v) for v in args.size.split(",")]
+        except ValueError:
+            raise ValueError(f"--size {args.size!r} is not LX or LX,LY (numbers in --unit)") from None
+        if len(size) not in (1, 2) or not all(v > 0 for v in size):
+            raise ValueError(f"--size {args.size!r} is out of range (valid: one or two positive numbers)")
+        size = size * 2 if len(size) == 1 else size
+    min_prom = parse_quantity(args.min_prominence, "m", "--min-prominence")
+    closure = None if args.closure is None else parse_quantity(args.closure, "m", "--closure")
+    base, label = args.preset, None
+    if args.scene is not None:
+        base, label = load_scene(args.scene).params, f"scene {args.scene}"
+    tops = [surfaces.read(p, physical_sizes=size, unit=args.unit) for p in args.surfaces]
+    t0 = time.perf_counter()
+    res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
+                       bootstrap=args.bootstrap, seed=args.seed, base_label=label)
+    seconds = time.perf_counter() - t0
+    command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}"
+    text = surfaces.scene_text(res, closure=closure, command=command)
+    from .scene import scene_from_dict, tomllib
+
+    scene_from_dict(tomllib.loads(text), source=str(out))  # what is written is a valid scene
+    out.write_text(text, encoding="utf-8")
+    p, se, g = res.params, res.stderr, res.goodness
+    print(f"{res.summits.n} summits on {res.surface.nb_grid_pts[0]} x {res.surface.nb_grid_pts[1]} points "
+          f"({seconds:.2f} s); KS depths {g['heights']:.3f}, radii {g['radii']:.3f}; "
+          f"rank correlation depth-radius {g['spearman_depth_radius']:.3f}")
+    for name, unit in (("N", "m-2"), ("alpha", "1"), ("beta", "m"), ("R_m", "m"), ("R_sigma", "m")):
+        print(f"  {name:8s} = {getattr(p, name):.5g} ± {se[name]:.2g} {unit}")
+    print(f"  not identified ({', '.join(surfaces.NOT_IDENTIFIED)}): from {res.source_of_rest}")
+    if args.plot is not None:
+        import matplotlib.pyplot as plt
+
+        fig = surfaces.plot_fit(res)
+        fig.savefig(args.plot, dpi=120)
+        plt.close(fig)
+        print(f"wrote {args.plot}")
+    print(f"wrote {out}")
+    return 0
+
+
+COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep,
+            "fit": _cmd_fit}
 
 
 if __name__ == "__main__":
