@@ -1,0 +1,202 @@
+"""Derived joint properties (asperity_sim.properties) and envelopes (asperity_sim.envelope).
+
+Synthetic datasets whose answers are known in closed form: an elastic / softening shear
+curve with a quadratic normal displacement (peak, residual, dilation exact), rotated
+shear directions, an elliptic hysteresis loop (area pi a c, secant stiffness k, damping
+c / (2 k a)), and Mohr-Coulomb / power-law data with known noise (estimates and the
+coverage of the confidence intervals).  Then small real runs: the path-independent paper
+law dissipates nothing per cycle, and for the history law mdr the loop area matches the
+recorded dissipation.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from asperity_sim import properties as P
+from asperity_sim.variables import PROPERTY_VARIABLES
+
+
+# -- synthetic datasets ------------------------------------------------------------------
+
+def _dataset(stage, disp, stress, stderr=None, tangent=None, control_1=1, dissipation=None, status="complete"):
+    m = len(stage)
+    control = np.zeros((m, 3), dtype="i1")
+    control[:, 0] = control_1
+    stderr = np.zeros((m, 3)) if stderr is None else stderr
+    tangent = np.zeros((m, 3, 3)) if tangent is None else tangent
+    ds = xr.Dataset({"displacement": (("step", "axis"), disp), "stress": (("step", "axis"), stress),
+                     "stress_stderr": (("step", "axis"), stderr), "tangent": (("step", "axis", "axis_k"), tangent),
+                     "stage": (("step",), np.asarray(stage)), "control": (("step", "axis"), control)})
+    if dissipation is not None:
+        ds["dissipation"] = ("step", dissipation)
+    ds.attrs["status"] = status
+    return ds
+
+
+K, TAU_Y, H, SIGMA_N = 1e14, 300e6, 5e13, 500e6  # Pa/m, Pa, Pa/m, Pa
+P1, Q1 = 0.2, 5e4  # Delta_1 = D0 + P1 s - Q1 s^2: compress, then dilate
+
+
+def softening_run(m_normal=5, m_shear=60, s_max=6e-6, direction=0.0, tangent_start=None):
+    """sigma_n held; tau = K s up to s_y = TAU_Y / K, then TAU_Y - H (s - s_y); shear along angle ``direction``."""
+    s = np.linspace(0.0, s_max, m_shear + 1)
+    s_y = TAU_Y / K
+    tau = np.where(s <= s_y, K * s, TAU_Y - H * (s - s_y))
+    d1_0 = 3e-6
+    d1 = d1_0 + P1 * s - Q1 * s**2
+    c, sn = math.cos(direction), math.sin(direction)
+    normal = np.linspace(0, 1, m_normal + 1)
+    disp = np.zeros((m_normal + 1 + m_shear, 3))
+    stress = np.zeros_like(disp)
+    disp[: m_normal + 1, 0] = d1_0 * normal
+    stress[: m_normal + 1, 0] = SIGMA_N * normal
+    disp[m_normal + 1:, 0] = d1[1:]
+    disp[m_normal + 1:, 1], disp[m_normal + 1:, 2] = c * s[1:], sn * s[1:]
+    stress[m_normal + 1:, 0] = SIGMA_N
+    stress[m_normal + 1:, 1], stress[m_normal + 1:, 2] = c * tau[1:], sn * tau[1:]
+    stderr = np.full_like(disp, 1e6)
+    stderr[:, 0] = 0.0
+    tangent = np.zeros((disp.shape[0], 3, 3))
+    tangent[m_normal] = tangent_start if tangent_start is not None else np.diag([5e13, K, K])
+    stage = np.array([0] + [1] * m_normal + [2] * (m_shear // 2) + [3] * (m_shear - m_shear // 2))
+    return _dataset(stage, disp, stress, stderr, tangent), s, tau, s_y
+
+
+def test_peak_residual_friction_dilation_of_a_softening_curve():
+    ds, s, tau, s_y = softening_run()
+    assert np.isclose(s, s_y).any()  # the yield point is a recorded step
+    props = P.shear_properties(ds)
+    assert props["peak_shear_stress"].item() == pytest.approx(TAU_Y, rel=1e-12)
+    assert props["peak_shear_displacement"].item() == pytest.approx(s_y, rel=1e-9)
+    assert props["peak_friction"].item() == pytest.approx(TAU_Y / SIGMA_N, rel=1e-12)
+    assert props["residual_shear_stress"].item() == pytest.approx(tau[-1], rel=1e-12)
+    assert props["residual_friction"].item() == pytest.approx(tau[-1] / SIGMA_N, rel=1e-12)
+    # central differences are exact for the quadratic Delta_1(s): atan(-(P1 - 2 Q1 s_y))
+    assert props["dilation_angle_peak"].item() == pytest.approx(math.atan(-(P1 - 2 * Q1 * s_y)), rel=1e-9)
+    assert props["normal_stiffness"].item() == 5e13 and props["shear_stiffness"].item() == K
+    assert props["normal_stress_start"].item() == SIGMA_N
+    # one-run standard errors: stress_stderr at that step; friction: sigma_1 is stress controlled (no error)
+    assert props["peak_shear_stress_stderr"].item() == pytest.approx(1e6)
+    assert props["peak_friction_stderr"].item() == pytest.approx(1e6 / SIGMA_N)
+
+
+def test_dilation_sign_compression_then_opening():
+    """Delta_1 first rises (compression: negative angle), then falls (dilation: positive angle)."""
+    s = np.linspace(0, 4e-6, 11)
+    d1 = 1e-6 + P1 * s - Q1 * s**2  # maximum at s = P1 / (2 Q1) = 2 um
+    assert P.dilation_angle(s, d1, 1) < 0.0 < P.dilation_angle(s, d1, 9)
+    assert P.dilation_angle(s, d1, 10) == pytest.approx(math.atan(-(P1 - 2 * Q1 * s[10])), rel=1e-9)  # one-sided, exact
+    assert math.isnan(P.dilation_angle(np.zeros(11), d1, 3))  # no shear displacement: undefined
+
+
+def test_elastic_perfectly_plastic_peak_is_the_first_yield_step_and_residual_the_plateau():
+    s = np.linspace(0, 6e-6, 61)
+    tau = np.minimum(K * s, TAU_Y)
+    assert P.peak(tau) == int(np.argmax(s >= TAU_Y / K - 1e-18)) and tau[P.residual(tau)] == TAU_Y
+
+
+@pytest.mark.parametrize("angle", [0.0, math.pi / 6, math.pi / 2, 2.0])
+def test_shear_direction_is_recovered(angle):
+    t = np.diag([5e13, 1e12, 3e12])
+    t[1, 2] = t[2, 1] = 5e11
+    ds, s, tau, s_y = softening_run(direction=angle, tangent_start=t)
+    props = P.shear_properties(ds)
+    e = np.array([math.cos(angle), math.sin(angle)])
+    assert props["peak_shear_stress"].item() == pytest.approx(TAU_Y, rel=1e-12)
+    assert props["shear_stiffness"].item() == pytest.approx(e @ t[1:, 1:] @ e, rel=1e-12)
+    assert props["dilation_angle_peak"].item() == pytest.approx(math.atan(-(P1 - 2 * Q1 * s_y)), rel=1e-9)
+    assert props["peak_shear_stress_stderr"].item() == pytest.approx(1e6 * math.hypot(*e), rel=1e-12)
+
+
+def ellipse_run(cycles=((2e-6, 1e13), (1e-6, 3e13)), c=8e6, per_quarter=100, dissipation=None):
+    """Cycles (a_i, k_i): s = a_i sin t, tau = k_i s + c cos t, t in [0, 2 pi] (closed loops, all through (0, c)).
+
+    Loop area pi a_i c, secant stiffness k_i, damping ratio c / (2 k_i a_i).
+    """
+    stage, s_all, tau_all = [0, 1], [0.0, 0.0], [0.0, c]
+    for i, (a, k) in enumerate(cycles):
+        t = np.linspace(0, 2 * np.pi, 4 * per_quarter + 1)[1:]
+        q = np.arange(1, t.size + 1)
+        stage += list(2 + 3 * i + np.where(q <= per_quarter, 0, np.where(q <= 3 * per_quarter, 1, 2)))
+        s_all += list(a * np.sin(t))
+        tau_all += list(k * a * np.sin(t) + c * np.cos(t))
+    m = len(stage)
+    disp, stress = np.zeros((m, 3)), np.zeros((m, 3))
+    disp[1:, 0], stress[1:, 0] = 1e-6, 100e6
+    disp[:, 1], stress[:, 1] = s_all, tau_all
+    tangent = np.zeros((m, 3, 3))
+    tangent[1] = np.diag([1e14, 6e13, 6e13])
+    return _dataset(np.array(stage), disp, stress, tangent=tangent, dissipation=dissipation)
+
+
+def test_ellipse_loop_area_secant_stiffness_and_damping():
+    cycles, c = ((2e-6, 1e13), (1e-6, 3e13)), 8e6
+    ds = ellipse_run(cycles, c)
+    for cycle, (a, k) in ((0, cycles[0]), (1, cycles[1]), (-1, cycles[1])):
+        props = P.cycle_properties(ds, cycle=cycle)
+        # trapezoid in s over 400 points per cycle: O(h^2) with h = 2 pi / 400, relative error ~ 1e-4
+        assert props["loop_dissipation"].item() == pytest.approx(np.pi * a * c, rel=1e-3)
+        assert props["secant_shear_stiffness"].item() == pytest.approx(k, rel=1e-12)  # cos t = 0 at s = +-a
+        assert props["cycle_amplitude"].item() == pytest.approx(a, rel=1e-12)
+        assert props["damping_ratio"].item() == pytest.approx(c / (2 * k * a), rel=1e-3)
+        assert props["secant_stiffness_ratio"].item() == pytest.approx(k / 6e13, rel=1e-12)
+        assert np.isnan(props["cycle_dissipation"].item())  # no dissipation variable (path-independent law)
+    with pytest.raises(ValueError, match="cycle = 2 is out of range"):
+        P.cycle_run(P.run_arrays(ds, {}), cycle=2)
+
+
+def test_cycle_dissipation_is_the_increase_of_the_recorded_dissipation():
+    ds = ellipse_run()
+    diss = np.cumsum(np.full(ds.sizes["step"], 0.5))
+    ds = ellipse_run(dissipation=diss)
+    props = P.cycle_properties(ds)
+    assert props["cycle_dissipation"].item() == pytest.approx(0.5 * 400)  # 400 increments in the last cycle
+
+
+def test_loop_of_a_path_independent_curve_has_no_area():
+    s = np.concatenate([np.linspace(0, 1, 11), np.linspace(1, -1, 21)[1:], np.linspace(-1, 0, 11)[1:]]) * 1e-6
+    tau = 3e12 * s - 1e18 * s**2 * np.sign(s)
+    assert abs(P.loop_energy(s, tau)) < 1e-12 * P.damping_ratio(1.0, 3e12, 1e-6)
+    assert P.loop_energy(s, tau) == pytest.approx(0.0, abs=1e-15)
+
+
+def test_replica_statistics_sem_and_single_run_fallback():
+    runs = [softening_run(s_max=s_max)[0] for s_max in (6e-6, 6.5e-6, 7e-6)]
+    ds = xr.concat(runs, dim="replica")
+    ds["stage"] = runs[0]["stage"]
+    ds["control"] = runs[0]["control"]
+    ds.attrs["status"] = "complete"
+    props = P.replica_statistics(P.shear_properties(ds))
+    x = props["residual_shear_stress"].values
+    assert props["residual_shear_stress_mean"].item() == pytest.approx(x.mean())
+    assert props["residual_shear_stress_sem"].item() == pytest.approx(x.std(ddof=1) / np.sqrt(3))
+    one = P.replica_statistics(P.shear_properties(runs[0]))
+    assert one["peak_shear_stress_sem"].item() == pytest.approx(1e6)  # stderr of the one run
+    assert np.isnan(one["dilation_angle_peak_sem"].item())  # replicas only
+
+
+def test_failed_run_gives_nan_and_its_status():
+    ds, *_ = softening_run()
+    ds.attrs["status"] = "failed: StressNotReachableError: sigma_2 cannot be reached"
+    props = P.shear_properties(ds)
+    assert np.isnan(props["peak_shear_stress"].item())
+    assert "StressNotReachableError" in str(props["property_note"].values)
+
+
+def test_no_shear_stage_is_a_clear_error():
+    ds, *_ = softening_run()
+    with pytest.raises(ValueError, match=r"no recorded step in the shear stage\(s\) \[7\]"):
+        P.shear_run(P.run_arrays(ds, {}), shear_stages=(7,))
+
+
+def test_every_property_is_registered_with_units():
+    for name in P.SHEAR_PROPERTIES + P.CYCLE_PROPERTIES:
+        assert name in PROPERTY_VARIABLES and PROPERTY_VARIABLES[name].units
+    ds, *_ = softening_run()
+    props = P.replica_statistics(P.shear_properties(ds))
+    for name, var in props.data_vars.items():
+        assert var.attrs.get("long_name"), name
+        assert name == "property_note" or var.attrs.get("units"), name
