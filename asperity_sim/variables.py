@@ -105,3 +105,5 @@ PROPERTY_VARIABLES = {  # derived joint properties (asperity_sim.properties, asp
                        "power-law envelope coefficient A of tau = A (sigma_n / sigma_ref)^B (tau at sigma_ref)"),
     "power_law_B": Var(("strength",), "f8", "1", "power-law envelope exponent B of tau = A (sigma_n / sigma_ref)^B"),
 }
+
+ALL_VARIABLES = {**ALL_VARIABLES, **PROPERTY_VARIABLES}
