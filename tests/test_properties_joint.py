@@ -200,3 +200,99 @@ def test_every_property_is_registered_with_units():
     for name, var in props.data_vars.items():
         assert var.attrs.get("long_name"), name
         assert name == "property_note" or var.attrs.get("units"), name
+
+
+# -- sweeps over the load path (asperity_sim.sweep) ---------------------------------------
+
+from pathlib import Path  # noqa: E402
+
+from asperity_sim import paths, presets  # noqa: E402
+from asperity_sim.scene import Scene, SceneError, load_scene, scale_increments  # noqa: E402
+from asperity_sim import sweep as SW  # noqa: E402
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+S_, D_ = paths.STRESS, paths.DISPLACEMENT
+
+
+def _cns(sigma=500e6, d2=10e-6, inc=4):
+    return paths.LoadPath((paths.Stage((S_, D_, D_), (sigma, 0, 0), inc, name="normal"),
+                           paths.Stage((S_, D_, D_), (sigma, d2 / 2, 0), inc, name="shear 1"),
+                           paths.Stage((S_, D_, D_), (sigma, d2, 0), inc, name="shear 2")), name="cns")
+
+
+def test_apply_path_sets_normal_stress_amplitude_direction_and_cycles():
+    base = _cns()
+    p = SW.apply_path(base, sigma_n=20e6, amplitude=3e-6, direction=math.pi / 2, cycles=2)
+    assert len(p.stages) == 5 and [s.name for s in p.stages] == ["normal", "shear 1", "shear 2", "shear 1", "shear 2"]
+    assert all(s.target[0] == pytest.approx(20e6) for s in p.stages)
+    assert p.stages[2].target[1] == pytest.approx(0.0, abs=1e-21) and p.stages[2].target[2] == pytest.approx(3e-6)
+    assert p.stages[1].target[2] == pytest.approx(1.5e-6)
+    assert SW.apply_path(base) == base
+    with pytest.raises(ValueError, match="no stress-controlled sigma_1"):
+        SW.apply_path(paths.three_step(5e-6), sigma_n=1e6)
+    with pytest.raises(ValueError, match="no displacement-controlled shear"):
+        SW.apply_path(paths.LoadPath((base.stages[0],)), amplitude=1e-6)
+
+
+def test_sweep_file_with_path_quantities_units_and_errors(tmp_path):
+    base = f'scene = "{(SCENARIOS / "constant_normal_shear_R1.toml").as_posix()}"\n[run]\nn = 300\n'
+    f = tmp_path / "sw.toml"
+    f.write_text(base + '[sweep]\nreplicas = 2\n[sweep.grid]\nsigma_n = ["10 MPa", "0.1 GPa"]\n'
+                        'amplitude = ["2 um"]\ndirection = ["30 deg"]\ncycles = [1]\nlaw = ["paper", "mdr"]\n'
+                        'n = [200]\n')
+    sw = SW.load_sweep(f)
+    assert sw.grid["sigma_n"] == (10e6, 100e6) and sw.grid["direction"] == (pytest.approx(math.pi / 6),)
+    assert sw.grid["law"] == ("paper", "mdr") and sw.shape == (2, 1, 1, 1, 2, 1, 2)
+    sc = sw.scene_at({"sigma_n": 10e6, "amplitude": 2e-6, "law": "mdr", "n": 200})
+    assert sc.law == "mdr" and sc.n == 200 and sc.path.stages[-1].target[:2] == pytest.approx((10e6, 2e-6))
+    for text, message in [
+        ('sigma_n = ["-1 MPa"]', "sigma_n = -1000000.0 is out of range (valid range: > 0 Pa)"),
+        ('sigma_n = ["1 um"]', "'um' is a length unit; a stress is needed"),
+        ('direction = ["30 grad"]', "is not an angle"),
+        ('cycles = [0]', "cycles = 0 is out of range (valid range: integer in [1, 1000])"),
+        ('law = ["elastic"]', "law = 'elastic' is not known (valid: paper, mdr)"),
+        ('n = [1.5]', "n = 1.5 is out of range"),
+        ('sigman = ["1 MPa"]', "unknown key 'sigman'"),
+    ]:
+        f.write_text(base + f"[sweep]\nreplicas = 1\n[sweep.grid]\n{text}\n")
+        with pytest.raises(SceneError) as err:
+            SW.load_sweep(f)
+        assert message in str(err.value) and "\n" not in str(err.value), (text, str(err.value))
+    # a path quantity the path cannot take: named with the grid point before anything runs
+    three = tmp_path / "three.toml"
+    three.write_text((SCENARIOS / "three_step_S1.toml").read_text())
+    f.write_text(f'scene = "three.toml"\n[sweep]\nreplicas = 1\n[sweep.grid]\nsigma_n = ["1 MPa"]\n')
+    with pytest.raises(SceneError, match="sweep grid point {'sigma_n': 1000000.0}: sigma_n = 1e\\+06 Pa: the path"):
+        SW.load_sweep(f)
+
+
+def test_path_sweep_runs_pads_shorter_paths_and_keeps_failed_points():
+    scene = Scene(params=presets.S1, path=_cns(inc=2), n=300, seed=1)
+    # sigma_2 prescribed above what the interface can carry at 1 MPa: that point fails, the others complete
+    unreachable = paths.LoadPath((paths.Stage((S_, D_, D_), (1e6, 0, 0), 2, name="normal"),
+                                  paths.Stage((S_, S_, D_), (1e6, 5e6, 0), 2, name="shear")), name="too much")
+    sw = SW.Sweep(scene=scene, grid={"cycles": (1, 2), "sigma_n": (1e6, 50e6)}, seeds=(1,))
+    ds = SW.run_sweep(sw, scheduler="serial")
+    assert ds.sizes["step"] == 2 + 2 * 2 * 2 + 1 and ds["stress"].dims[:3] == ("cycles", "sigma_n", "replica")
+    assert np.isnan(ds["stress"].sel(cycles=1).values[:, :, 7:]).all()
+    assert np.isfinite(ds["stress"].sel(cycles=2).values).all()
+    bad = SW.run_sweep(SW.Sweep(scene=scene.replace(path=unreachable), grid={"sigma_n": (1e6, 500e6)}, seeds=(1,)),
+                       scheduler="serial")
+    status = bad["status"].values[:, 0]
+    assert status[0].startswith("failed: StressNotReachableError") and status[1] == "complete"
+    props = P.shear_properties(bad)
+    assert np.isnan(props["peak_shear_stress"].values[0, 0]) and np.isfinite(props["peak_shear_stress"].values[1, 0])
+    assert "StressNotReachableError" in props["property_note"].values[0, 0]
+
+
+def test_auto_engine_picks_serial_for_small_and_cluster_for_large_sweeps():
+    scene = Scene(params=presets.R1, path=_cns(inc=40), n=1000, seed=1)
+    small = [scene] * 4
+    large = [scene.replace(n=200_000, law="mdr", k=16)] * 8
+    assert SW.choose_engine(small, workers=2, cpus=2)[0] == "serial"
+    choice, reason = SW.choose_engine(large, workers=2, cpus=2)
+    assert choice == "local" and reason.startswith("auto: estimated")
+    assert SW.choose_engine(large, workers=2, cpus=1)[0] == "serial"  # one core: nothing to share
+    assert SW.choose_engine(large[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
+    ds = SW.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
+    assert ds.attrs["engine"].startswith("serial") and "auto: estimated" in ds.attrs["engine"]
