@@ -296,3 +296,144 @@ def test_auto_engine_picks_serial_for_small_and_cluster_for_large_sweeps():
     assert SW.choose_engine(large[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
     ds = SW.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
     assert ds.attrs["engine"].startswith("serial") and "auto: estimated" in ds.attrs["engine"]
+
+
+# -- envelopes and cycles (asperity_sim.envelope) ----------------------------------------
+
+from asperity_sim import cli, envelope as E  # noqa: E402
+from asperity_sim.io import read_netcdf  # noqa: E402
+
+
+def test_mohr_coulomb_fit_recovers_c_and_phi_and_its_intervals_cover_the_truth():
+    c, phi = 2e6, math.radians(35.0)
+    sigma = np.linspace(5e6, 100e6, 8)
+    se = 0.5e6 + 0.02 * sigma  # heteroscedastic, known
+    rng = np.random.default_rng(7)
+    tau = c + sigma * math.tan(phi) + rng.normal(0.0, se)
+    mc = E.fit_mohr_coulomb(sigma, tau, se, level=0.95)
+    assert mc["cohesion_ci"][0] < c < mc["cohesion_ci"][1]
+    assert mc["friction_angle_ci"][0] < phi < mc["friction_angle_ci"][1]
+    assert mc["cohesion"] == pytest.approx(c, abs=3e6) and math.degrees(mc["friction_angle"]) == pytest.approx(35, abs=2)
+    exact = E.fit_mohr_coulomb(sigma, c + sigma * math.tan(phi), se)  # no noise: exact, zero-width intervals
+    assert exact["cohesion"] == pytest.approx(c, rel=1e-9) and exact["friction_angle"] == pytest.approx(phi, rel=1e-12)
+    # coverage over 400 noisy data sets: 95 % intervals cover about 95 % of the time
+    # (binomial s.d. 1.1 %: [0.92, 0.98] is about +-2.7 s.d.)
+    hits_c = hits_phi = 0
+    for _ in range(400):
+        t = c + sigma * math.tan(phi) + rng.normal(0.0, se)
+        f = E.fit_mohr_coulomb(sigma, t, se)
+        hits_c += f["cohesion_ci"][0] < c < f["cohesion_ci"][1]
+        hits_phi += f["friction_angle_ci"][0] < phi < f["friction_angle_ci"][1]
+    assert 0.92 <= hits_c / 400 <= 0.98 and 0.92 <= hits_phi / 400 <= 0.98
+
+
+def test_power_law_fit_recovers_A_and_B():
+    A, B = 3e6, 0.8
+    sigma = np.geomspace(1e6, 1e9, 10)
+    rng = np.random.default_rng(3)
+    rel = 0.03
+    tau = A * (sigma / E.SIGMA_REF) ** B * np.exp(rng.normal(0.0, rel, sigma.size))
+    pl = E.fit_power_law(sigma, tau, rel * tau)
+    assert pl["A_ci"][0] < A < pl["A_ci"][1] and pl["B_ci"][0] < B < pl["B_ci"][1]
+    exact = E.fit_power_law(sigma, A * (sigma / E.SIGMA_REF) ** B)
+    assert exact["A"] == pytest.approx(A, rel=1e-9) and exact["B"] == pytest.approx(B, rel=1e-9)
+    with pytest.raises(ValueError, match="2 or more points"):
+        E.weighted_line([1.0], [2.0])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("1 MPa:1 GPa:12:log", None),
+    ("1 MPa:1 GPa:1:log", "--sigma-n count = '1' is out of range (valid range: integer in [2, 200])"),
+    ("1 MPa:1 GPa:x:log", "count = 'x' is out of range"),
+    ("1 MPa:1 GPa:4:cubic", "spacing = 'cubic' is not known (valid: log, lin)"),
+    ("1 GPa:1 MPa:4:log", "start and stop are out of range (valid range: 0 < start < stop)"),
+    ("1 um:1 GPa:4:log", "--sigma-n start = '1 um': 'um' is a length unit; a stress is needed"),
+    ("1 MPa:1 GPa", "is not a range"),
+    ("-5 MPa", "is out of range (valid range: > 0)"),
+])
+def test_range_syntax(text, message):
+    if message is None:
+        v = E.parse_range(text, "Pa", "--sigma-n")
+        assert v.size == 12 and v[0] == 1e6 and v[-1] == 1e9 and np.allclose(np.diff(np.log(v)), np.log(10) / 3.6667,
+                                                                              rtol=1e-3)
+        assert list(E.parse_range("1 um:3 um:3:lin", "m", "a")) == pytest.approx([1e-6, 2e-6, 3e-6])
+        assert list(E.parse_range("100 MPa", "Pa", "s")) == [100e6]
+        return
+    with pytest.raises(SceneError) as err:
+        E.parse_range(text, "Pa", "--sigma-n")
+    assert message in str(err.value)
+
+
+def _cyclic_run(law, inc, n=2000):
+    from asperity_sim import simulate
+
+    path = E.cyclic_path(paths.Stage((S_, D_, D_), (100e6, 0, 0), 6), 0.5e-6, cycles=2, increments=inc)
+    return simulate(presets.S1, path, n=n, seed=3, law=law, k=8)
+
+
+def test_paper_law_dissipates_nothing_per_cycle():
+    """The paper law is path independent: the loop retraces itself, W_d = 0 to round-off, damping 0."""
+    props = P.cycle_properties(_cyclic_run("paper", 4))
+    w_s = 0.5 * props["secant_shear_stiffness"].item() * props["cycle_amplitude"].item() ** 2
+    assert abs(props["loop_dissipation"].item()) < 1e-9 * w_s and abs(props["damping_ratio"].item()) < 1e-9
+
+
+def test_mdr_loop_area_converges_to_the_recorded_dissipation():
+    """Loop area (trapezoid of tau ds at the interface) against the increase of ``dissipation`` (per contact):
+    both are second-order in the increment, so their gap must shrink ~4x per halving (measured 3.5x, 3.3x)."""
+    gaps = []
+    for inc in (6, 12, 24):
+        props = P.cycle_properties(_cyclic_run("mdr", inc))
+        w, d = props["loop_dissipation"].item(), props["cycle_dissipation"].item()
+        assert w > 0 and d > 0
+        gaps.append(abs(w - d) / d)
+    assert gaps[0] / gaps[1] > 2.5 and gaps[1] / gaps[2] > 2.5
+    assert gaps[2] < 0.005
+
+
+def test_envelope_function_dataset_csv_and_figure(tmp_path):
+    scene = Scene(params=presets.R1, path=_cns(sigma=100e6, d2=20e-6, inc=5), n=800, seed=1)
+    ds = E.envelope(scene, [20e6, 60e6, 200e6], replicas=2, scheduler="serial")
+    assert ds["peak_shear_stress"].dims == ("sigma_n", "replica") and ds["peak_shear_stress_mean"].dims == ("sigma_n",)
+    assert (ds["status"].values == "complete").all()
+    np.testing.assert_allclose(ds["peak_normal_stress_mean"].values, [20e6, 60e6, 200e6], rtol=1e-6)
+    assert ds["mc_friction_angle"].dims == ("strength",) and ds["mc_cohesion_low"].attrs["units"] == "Pa"
+    f = ds.sel(strength="peak")
+    assert f.mc_friction_angle_low <= f.mc_friction_angle <= f.mc_friction_angle_high
+    for name, var in ds.data_vars.items():
+        assert var.attrs.get("long_name"), name
+    files = E.write_products(ds, tmp_path / "env.nc")
+    back = read_netcdf(files["netcdf"])
+    assert back.attrs["product"] == "envelope" and back["peak_shear_stress_mean"].attrs["units"] == "Pa"
+    rows = [r for r in files["csv"].read_text().splitlines() if not r.startswith("#")]
+    assert rows[0].startswith("sigma_n_Pa,replicas_complete,peak_shear_stress_Pa,peak_shear_stress_se_Pa")
+    assert len(rows) == 4 and rows[1].startswith("20000000,2,")
+    assert files["figure"].stat().st_size > 20_000
+
+
+def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "cns.toml"
+    scene.write_text((SCENARIOS / "constant_normal_shear_S1.toml").read_text().replace("increments = 40",
+                                                                                       "increments = 4"))
+    assert cli.main(["envelope", "cns.toml", "--sigma-n", "10 MPa:100 MPa:3:log", "--n", "500", "--replicas", "2",
+                     "--serial"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote cns_envelope.nc, cns_envelope.csv, cns_envelope.png: 6 runs (6 complete)" in out
+    assert cli.main(["cyclic", "cns.toml", "--amplitude", "0.1 um:1 um:2:log", "--n", "400", "--replicas", "2",
+                     "--law", "mdr", "--sigma-n", "50 MPa", "--increments", "3", "-o", "c/cyc.nc"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote c/cyc.nc, c/cyc.csv, c/cyc.png: 4 runs (4 complete)" in out and "auto: estimated" in out
+    cyc = read_netcdf(tmp_path / "c" / "cyc.nc")
+    assert cyc.attrs["product"] == "cyclic" and (cyc["damping_ratio_mean"].values > 0).all()
+    assert np.all(np.diff(cyc["secant_stiffness_ratio_mean"].values) < 0)  # stiffness falls with amplitude
+    for argv, message in [
+        (["envelope", "cns.toml", "--sigma-n", "1 MPa:1 GPa:0:log"], "--sigma-n count = '0' is out of range"),
+        (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--shear-stages", "9"], "--shear-stages = '9' is out of range"),
+        (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--level", "1.5"], "--level = 1.5 is out of range"),
+        (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "'MPa' is a stress unit; a length is needed"),
+        (["cyclic", "cns.toml", "--amplitude", "1 um", "--sigma-n", "-3 MPa"], "--sigma-n = '-3 MPa' is out of range"),
+    ]:
+        assert cli.main(argv) == cli.EXIT_INPUT
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
