@@ -459,40 +459,45 @@ def _failed(status, wall):
 
 # -- execution -----------------------------------------------------------------
 
-COST_PER_ASPERITY_INCREMENT = {"paper": 90e-9, "mdr": 40e-9}
-"""Serial cost model [s]: paper law per asperity and increment; mdr per asperity, increment and spring.
-Measured on 2 shared cores (benchmarks/sweep_auto.py, outputs/sweep_auto.json): paper 65-90 ns at
-n = 20 000, mdr 280-340 ns at n = 5 000, k = 8."""
-COST_PER_RUN = 0.03
-"""Fixed cost of one run [s] (sampling, dataset), measured as above."""
-CLUSTER_START = 3.5
-"""Start of a 2-worker LocalCluster and its first tasks [s] (imports, numba cache load in every worker):
-measured 1.7 and 3.4 s on 2 shared cores (the issue quotes 5.9 s against 2.6 s serial for small runs)."""
+COST_PER_INCREMENT = {"paper": 2.4e-4, "mdr": 7.2e-4}
+"""Python-side cost of one increment [s] (Newton loop, recording): runs on one core whatever the threads."""
+COST_PER_ASPERITY_INCREMENT = {"paper": 1.3e-7, "mdr": 1.0e-7}
+"""Kernel cost on one thread [s]: paper law per asperity and increment; mdr per asperity, increment and spring.
+Kernels run on numba's threads (taken as scaling perfectly).  Both tables were fitted to serial runs of
+the 120-increment constant-normal-shear path on 2 shared cores (2 numba threads): paper 0.045 s at
+n = 2000 and 0.19 s at n = 20 000; mdr (k = 8) 0.33 s at n = 5000 and 1.06 s at n = 20 000."""
+CLUSTER_START = 8.0
+"""Start of a 2-worker LocalCluster and its first tasks [s] (worker processes import asperity_sim and load
+the numba cache): 8.7-11.4 s for a whole small sweep on it in benchmarks/sweep_auto.py (2 shared cores)."""
 
 
-def estimate_run_seconds(scene: Scene) -> float:
-    """Serial wall time of one run [s] from :data:`COST_PER_ASPERITY_INCREMENT` (a rough model, for choosing)."""
+def estimate_run_seconds(scene: Scene, threads: int = 1) -> float:
+    """Wall time of one run [s] on ``threads`` numba threads, from the cost tables (a rough model, for choosing)."""
     increments = sum(s.increments for s in scene.path.stages)
-    per = COST_PER_ASPERITY_INCREMENT.get(scene.law, COST_PER_ASPERITY_INCREMENT["mdr"])
-    if scene.law == "mdr":
-        per *= scene.k
-    return COST_PER_RUN + per * scene.n * increments
+    law = scene.law if scene.law in COST_PER_INCREMENT else "mdr"
+    per = COST_PER_ASPERITY_INCREMENT[law] * (scene.k if law == "mdr" else 1)
+    return increments * (COST_PER_INCREMENT[law] + per * scene.n / max(1, threads))
 
 
 def choose_engine(scenes, workers: int = 2, cpus: int | None = None) -> tuple[str, str]:
     """("serial" or "local", reason): the engine estimated faster for these runs.
 
-    Serial: the sum of :func:`estimate_run_seconds`.  Local cluster: :data:`CLUSTER_START`
-    plus that sum shared by min(workers, cpus, runs) processes (each run is one task).
+    Serial: every run on all ``cpus`` numba threads.  Local cluster: :data:`CLUSTER_START`, then
+    the runs shared by min(workers, cpus, runs) processes with cpus // workers threads each.
+    The kernels use every core either way, so a cluster gains only the Python-side work it
+    runs side by side (many small runs) and must win back its start.
     """
-    cpus = os.cpu_count() or 1 if cpus is None else cpus
-    serial = sum(estimate_run_seconds(sc) for sc in scenes)
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    serial = sum(estimate_run_seconds(sc, cpus) for sc in scenes)
     share = max(1, min(workers, cpus, len(scenes)))
-    cluster = CLUSTER_START + serial / share if share > 1 else math.inf
+    per_worker = max(1, cpus // workers)
+    cluster = CLUSTER_START + sum(estimate_run_seconds(sc, per_worker) for sc in scenes) / share \
+        if share > 1 else math.inf
     choice = "local" if cluster < serial else "serial"
     reason = (f"auto: estimated {serial:.1f} s serial, {cluster:.1f} s on a {workers}-worker local cluster "
               f"({cpus} cores)")
     return choice, reason
+
 
 def worker_env() -> dict:
     """Environment of local worker processes: idle OpenMP threads sleep (``OMP_WAIT_POLICY=PASSIVE``).

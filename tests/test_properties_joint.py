@@ -288,12 +288,17 @@ def test_path_sweep_runs_pads_shorter_paths_and_keeps_failed_points():
 def test_auto_engine_picks_serial_for_small_and_cluster_for_large_sweeps():
     scene = Scene(params=presets.R1, path=_cns(inc=40), n=1000, seed=1)
     small = [scene] * 4
-    large = [scene.replace(n=200_000, law="mdr", k=16)] * 8
+    big_runs = [scene.replace(n=200_000, law="mdr", k=16)] * 8  # kernels use both cores serially already
+    many_small = [scene.replace(n=500, law="mdr", k=8)] * 400  # Python-side work side by side pays the start
     assert SW.choose_engine(small, workers=2, cpus=2)[0] == "serial"
-    choice, reason = SW.choose_engine(large, workers=2, cpus=2)
+    assert SW.choose_engine(big_runs, workers=2, cpus=2)[0] == "serial"
+    choice, reason = SW.choose_engine(many_small, workers=2, cpus=2)
     assert choice == "local" and reason.startswith("auto: estimated")
-    assert SW.choose_engine(large, workers=2, cpus=1)[0] == "serial"  # one core: nothing to share
-    assert SW.choose_engine(large[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
+    assert SW.choose_engine(many_small, workers=2, cpus=1)[0] == "serial"  # one core: nothing to share
+    assert SW.choose_engine(many_small[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
+    # the model: serial = sum of runs on all threads; cluster = start + runs on cpus // workers threads, shared
+    one = SW.estimate_run_seconds(many_small[0], 2)
+    assert one == pytest.approx(120 * (SW.COST_PER_INCREMENT["mdr"] + 8 * SW.COST_PER_ASPERITY_INCREMENT["mdr"] * 250))
     ds = SW.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
     assert ds.attrs["engine"].startswith("serial") and "auto: estimated" in ds.attrs["engine"]
 
@@ -437,3 +442,20 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
         assert cli.main(argv) == cli.EXIT_INPUT
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err, err
+
+
+@pytest.mark.slow
+def test_joint_properties_scenario_quick(tmp_path, capsys):
+    import importlib
+    import sys
+
+    sys.path.insert(0, str(SCENARIOS))
+    module = importlib.import_module("joint_properties")
+    assert module.main(["--quick", "--n", "600", "--outdir", str(tmp_path)]) == 0
+    for name in ("R1", "S1"):
+        for law in ("paper", "mdr"):
+            for kind in ("envelope", "cyclic"):
+                for ext in ("nc", "csv", "png"):
+                    assert (tmp_path / f"joint_{kind}_{name}_{law}.{ext}").stat().st_size > 0
+    assert (tmp_path / "joint_properties.png").stat().st_size > 20_000
+    assert "R1 paper at 500 MPa" in capsys.readouterr().out
