@@ -458,4 +458,5 @@ def test_joint_properties_scenario_quick(tmp_path, capsys):
                 for ext in ("nc", "csv", "png"):
                     assert (tmp_path / f"joint_{kind}_{name}_{law}.{ext}").stat().st_size > 0
     assert (tmp_path / "joint_properties.png").stat().st_size > 20_000
-    assert "R1 paper at 500 MPa" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "R1 paper   at 500 MPa: k_s =" in out and "crossing mdr: S1 above R1 at first" in out
