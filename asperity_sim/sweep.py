@@ -716,7 +716,7 @@ def _sweep_attributes(sweep: Sweep, engine: str, wall_time: float) -> dict:
         "law": scene.law if "law" not in sweep.grid else "swept: see the coordinate law",
         "policy": scene.policy,
         "sampler": scene.sampler,
-        "n_asperities": scene.n,
+        "n_asperities": scene.n if "n" not in sweep.grid else "swept: see the coordinate n",
         "load_path": sweep.longest_path().describe() if any(k in PATH_QUANTITIES for k in sweep.grid)
         else scene.path.describe(),
         "load_path_note": ("load-path quantities swept (" + ", ".join(k for k in sweep.grid if k in PATH_QUANTITIES)
@@ -750,9 +750,9 @@ def plot_sweep(ds: xr.Dataset):
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     styles = {1: "-", 2: "--", 3: ":"}
-    n = float(ds.attrs.get("n_asperities", 1))
     for j in range(stacked.sizes["point"]):
         p = stacked.isel(point=j)
+        n = float(p["n"]) if "n" in grid else float(ds.attrs.get("n_asperities", 1))  # n may be swept
         label = ", ".join(f"{g} = {p[g].item():.4g}" if ds[g].dtype.kind in "fiu" else f"{g} = {p[g].item()}"
                           for g in grid) or "ensemble"
         color = colors[j % len(colors)]

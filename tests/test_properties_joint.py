@@ -460,3 +460,36 @@ def test_joint_properties_scenario_quick(tmp_path, capsys):
     assert (tmp_path / "joint_properties.png").stat().st_size > 20_000
     out = capsys.readouterr().out
     assert "R1 paper   at 500 MPa: k_s =" in out and "crossing mdr: S1 above R1 at first" in out
+
+
+def test_sweep_command_over_law_n_and_direction_then_info_and_plot(tmp_path, monkeypatch, capsys):
+    """An isotropic interface (b = c = d = 0) resists shear the same in every direction (within Monte Carlo error)."""
+    monkeypatch.chdir(tmp_path)
+    base = tmp_path / "base.toml"
+    base.write_text((SCENARIOS / "constant_normal_shear_S1.toml").read_text().replace("increments = 40",
+                                                                                      "increments = 3"))
+    (tmp_path / "sw.toml").write_text('scene = "base.toml"\n[run]\nn = 800\n[sweep]\nseeds = [4]\n[sweep.grid]\n'
+                                      'direction = ["0 deg", "90 deg"]\nlaw = ["paper", "mdr"]\nn = [600, 900]\n')
+    assert cli.main(["sweep", "sw.toml", "--serial"]) == 0
+    assert "8 runs (8 complete), dims direction = 2, law = 2, n = 2, replica = 1" in capsys.readouterr().out
+    ds = read_netcdf(tmp_path / "sw.nc")
+    assert list(ds["law"].values) == ["paper", "mdr"] and ds["direction"].attrs["units"] == "rad"
+    d = ds["displacement"].sel(direction=ds["direction"].values[1]).values
+    assert np.allclose(d[..., -1, 1], 0.0, atol=1e-18) and np.allclose(d[..., -1, 2], 50e-6)  # sheared along axis 3
+    props = P.shear_properties(ds)
+    tau, se = props["peak_shear_stress"].values, props["peak_shear_stress_stderr"].values
+    z = (tau[0] - tau[1]) / np.hypot(se[0], se[1])
+    assert np.all(np.abs(z) < 4.0) and np.all(np.abs(tau[0] - tau[1]) > 0), z  # different samples, same law
+    assert cli.main(["info", "sw.nc"]) == 0 and "direction = [0 deg, 90 deg]" in capsys.readouterr().out
+    assert cli.main(["plot", "sw.nc"]) == 0 and (tmp_path / "sw.png").stat().st_size > 10_000
+
+
+def test_fits_skip_failed_points():
+    sigma = np.array([10e6, 20e6, 40e6, 80e6, 160e6])
+    tau = 1e6 + 0.7 * sigma
+    tau_failed = tau.copy()
+    tau_failed[2] = np.nan
+    se = np.full(5, 1e5)
+    f = E.fit_mohr_coulomb(sigma, tau_failed, se)
+    assert f["fit"]["points"] == 4 and f["cohesion"] == pytest.approx(1e6, rel=1e-9)
+    assert math.tan(f["friction_angle"]) == pytest.approx(0.7, rel=1e-12)
