@@ -521,9 +521,10 @@ def run_sweep(sweep: Sweep, scheduler=None, workers: int = 2, progress=None, not
               threads: int | None = None) -> xr.Dataset:
     """Run every point of ``sweep`` and gather one Dataset (see the module docstring).
 
-    scheduler : None or "local" (a ``dask.distributed.LocalCluster`` of ``workers`` processes;
-        serial, with a note, when dask is not installed), "serial", an address such as
-        ``"tcp://host:8786"``, or a ``dask.distributed.Client``
+    scheduler : None or "auto" (serial or a local cluster, whichever :func:`choose_engine` estimates
+        faster), "local" (a ``dask.distributed.LocalCluster`` of ``workers`` processes), "serial",
+        an address such as ``"tcp://host:8786"``, or a ``dask.distributed.Client``; None, "auto"
+        and "local" run serially, with a note, when dask is not installed
     progress : callable(done, total) after each finished run
     note : callable(str) for messages to the user (default: ``logging.warning``)
     threads : numba threads per run on Dask workers (default: cores // workers on a local

@@ -493,3 +493,19 @@ def test_fits_skip_failed_points():
     f = E.fit_mohr_coulomb(sigma, tau_failed, se)
     assert f["fit"]["points"] == 4 and f["cohesion"] == pytest.approx(1e6, rel=1e-9)
     assert math.tan(f["friction_angle"]) == pytest.approx(0.7, rel=1e-12)
+
+
+@pytest.mark.slow
+def test_path_sweep_with_a_failing_point_gives_the_same_bits_on_a_local_cluster():
+    pytest.importorskip("dask.distributed")
+    unreachable = paths.LoadPath((paths.Stage((S_, D_, D_), (1e6, 0, 0), 2, name="normal"),
+                                  paths.Stage((S_, S_, D_), (1e6, 5e6, 0), 2, name="shear")), name="too much")
+    scene = Scene(params=presets.S1, path=unreachable, n=300, seed=1)
+    sw = SW.Sweep(scene=scene, grid={"sigma_n": (1e6, 500e6), "cycles": (1, 2)}, seeds=(1, 2))
+    serial = SW.run_sweep(sw, scheduler="serial")
+    dask = SW.run_sweep(sw, scheduler="local", workers=2)
+    assert dask.attrs["engine"].startswith("dask LocalCluster")
+    assert np.array_equal(serial["status"].values, dask["status"].values)
+    assert (serial["status"].sel(sigma_n=1e6).values != "complete").all()
+    for v in ("stress", "displacement", "tangent"):
+        assert np.array_equal(serial[v].values, dask[v].values, equal_nan=True), v
