@@ -253,6 +253,9 @@ def _status_ok(ds, index):
 
 
 def _apply(ds, names, fn, with_stderr=()):
+    if "stress" not in ds:
+        status = sorted(set(np.atleast_1d(ds["status"].values).ravel())) if "status" in ds else ["unknown"]
+        raise ValueError(f"no run recorded any step (status: {'; '.join(map(str, status))})")
     lead = _lead_dims(ds)
     shape = tuple(ds.sizes[d] for d in lead)
     values = {k: np.full(shape, np.nan) for k in names}

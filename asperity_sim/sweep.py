@@ -121,6 +121,10 @@ def _check_value(name, value):
     from .population import N_MAX
 
     where = f"sweep grid: {name}"
+    if name in ("sigma_n", "amplitude", "direction") and (isinstance(value, (bool, str))
+                                                          or not isinstance(value, (int, float, np.number))):
+        raise SceneError(f"{where} = {value!r} is not a number in {PATH_QUANTITIES[name][0]} (in a sweep file, "
+                         "quantities with units such as \"10 MPa\" are converted before this check)")
     if name in ("sigma_n", "amplitude"):
         v = float(value)
         if not (math.isfinite(v) and v > 0.0):

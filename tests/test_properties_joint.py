@@ -509,3 +509,17 @@ def test_path_sweep_with_a_failing_point_gives_the_same_bits_on_a_local_cluster(
     assert (serial["status"].sel(sigma_n=1e6).values != "complete").all()
     for v in ("stress", "displacement", "tangent"):
         assert np.array_equal(serial[v].values, dask[v].values, equal_nan=True), v
+
+
+def test_python_api_errors_name_the_key():
+    scene = Scene(params=presets.S1, path=_cns(inc=2), n=300, seed=1)
+    with pytest.raises(SceneError, match="sweep grid: sigma_n = '10 MPa' is not a number in Pa"):
+        SW.Sweep(scene=scene, grid={"sigma_n": ("10 MPa",)})
+    with pytest.raises(SceneError, match=r"sweep grid: amplitude = 0.0 is out of range \(valid range: > 0 m\)"):
+        SW.Sweep(scene=scene, grid={"amplitude": (0.0,)})
+    with pytest.raises(ValueError, match=r"replicas = 0 is out of range \(valid range: integer in \[1, 10000\]\)"):
+        E.envelope(scene, [1e6], replicas=0)
+    with pytest.raises(ValueError, match=r"cycles = 0 is out of range"):
+        E.cyclic_path(scene.path.stages[0], 1e-6, cycles=0)
+    with pytest.raises(ValueError, match=r"level = 1.2 is out of range"):
+        E.weighted_line([1, 2, 3], [1, 2, 3], level=1.2)
