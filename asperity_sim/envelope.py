@@ -32,7 +32,7 @@ import xarray as xr
 
 from . import paths
 from . import properties as P
-from .scene import Scene, SceneError, format_quantity, parse_quantity
+from .scene import Scene, SceneError, parse_quantity
 from .sweep import Sweep, run_sweep
 from .variables import PROPERTY_VARIABLES
 

@@ -207,7 +207,7 @@ def test_every_property_is_registered_with_units():
 from pathlib import Path  # noqa: E402
 
 from asperity_sim import paths, presets  # noqa: E402
-from asperity_sim.scene import Scene, SceneError, load_scene, scale_increments  # noqa: E402
+from asperity_sim.scene import Scene, SceneError  # noqa: E402
 from asperity_sim import sweep as SW  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -261,7 +261,7 @@ def test_sweep_file_with_path_quantities_units_and_errors(tmp_path):
     # a path quantity the path cannot take: named with the grid point before anything runs
     three = tmp_path / "three.toml"
     three.write_text((SCENARIOS / "three_step_S1.toml").read_text())
-    f.write_text(f'scene = "three.toml"\n[sweep]\nreplicas = 1\n[sweep.grid]\nsigma_n = ["1 MPa"]\n')
+    f.write_text('scene = "three.toml"\n[sweep]\nreplicas = 1\n[sweep.grid]\nsigma_n = ["1 MPa"]\n')
     with pytest.raises(SceneError, match="sweep grid point {'sigma_n': 1000000.0}: sigma_n = 1e\\+06 Pa: the path"):
         SW.load_sweep(f)
 
