@@ -523,3 +523,39 @@ def test_python_api_errors_name_the_key():
         E.cyclic_path(scene.path.stages[0], 1e-6, cycles=0)
     with pytest.raises(ValueError, match=r"level = 1.2 is out of range"):
         E.weighted_line([1, 2, 3], [1, 2, 3], level=1.2)
+
+
+FAILING_SCENE = """
+title = "shear stress prescribed: too much at low normal stress"
+[parameters]
+preset = "S1"
+[run]
+n = 400
+seed = 2
+[[path.stages]]
+name = "normal"
+increments = 3
+sigma_1 = "100 MPa"
+Delta_2 = "0 um"
+Delta_3 = "0 um"
+[[path.stages]]
+name = "shear"
+increments = 3
+sigma_1 = "100 MPa"
+sigma_2 = "5 MPa"
+Delta_3 = "0 um"
+"""
+
+
+def test_envelope_command_with_a_failing_point_writes_the_others_and_exits_3(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "f.toml").write_text(FAILING_SCENE)
+    code = cli.main(["envelope", "f.toml", "--sigma-n", "1 MPa:100 MPa:3:log", "--replicas", "2", "--serial"])
+    out, err = capsys.readouterr()
+    assert code == cli.EXIT_FAILED and "wrote f_envelope.nc" in out
+    assert "2 of 6 runs did not complete" in err and "StressNotReachableError" in err and len(err.splitlines()) == 1
+    ds = read_netcdf(tmp_path / "f_envelope.nc")
+    assert np.isnan(ds["peak_shear_stress"].values[0]).all() and np.isfinite(ds["peak_shear_stress"].values[1:]).all()
+    assert ds["peak_shear_stress_mean"].values[1:] == pytest.approx([5e6, 5e6])  # the prescribed shear stress
+    rows = [r for r in (tmp_path / "f_envelope.csv").read_text().splitlines() if not r.startswith("#")]
+    assert rows[1].startswith("1000000,0,,")  # no complete replica: empty fields, not numbers
