@@ -265,6 +265,8 @@ def cyclic(scene: Scene, amplitudes, cycles: int = 2, increments: int = 8, sigma
                   title=f"cyclic shear: {scene.title or scene.name}", source=scene.source)
     runs = run_sweep(sweep, scheduler=scheduler, workers=workers, progress=progress, note=note)
     props = P.replica_statistics(P.cycle_properties(runs, cycle=-1))
+    props = xr.merge([props, P.every_cycle(runs).drop_vars([c for c in props.coords if c != "cycle"],
+                                                            errors="ignore")], combine_attrs="drop_conflicts")
     return _product(runs, props, "cyclic", {"cycles": cycles, "cycle_evaluated": "the last",
                                             "increments_per_quarter_cycle": increments})
 

@@ -52,7 +52,8 @@ from .variables import PROPERTY_VARIABLES
 
 __all__ = ["SHEAR_PROPERTIES", "CYCLE_PROPERTIES", "WITH_STDERR", "shear_direction", "peak", "residual",
            "dilation_angle", "start_stiffness", "secant_stiffness", "loop_energy", "damping_ratio",
-           "shear_run", "cycle_run", "shear_properties", "cycle_properties", "replica_statistics", "run_arrays"]
+           "shear_run", "cycle_run", "shear_properties", "cycle_properties", "every_cycle", "replica_statistics",
+           "run_arrays", "BY_CYCLE"]
 
 SHEAR_PROPERTIES = ("peak_shear_stress", "peak_shear_displacement", "peak_normal_stress", "peak_friction",
                     "residual_shear_stress", "residual_friction", "dilation_angle_peak", "normal_stress_start",
@@ -309,6 +310,27 @@ def shear_properties(ds: xr.Dataset, shear_stages=None) -> xr.Dataset:
 def cycle_properties(ds: xr.Dataset, cycle: int = -1, first_stage: int = 2, stages_per_cycle: int = 3) -> xr.Dataset:
     """:data:`CYCLE_PROPERTIES` of cycle ``cycle`` of every run of ``ds`` (see :func:`cycle_run`)."""
     return _apply(ds, CYCLE_PROPERTIES, lambda run: cycle_run(run, cycle, first_stage, stages_per_cycle))
+
+
+BY_CYCLE = ("secant_shear_stiffness", "loop_dissipation", "cycle_dissipation", "damping_ratio")
+"""Cycle properties also given for every cycle (``<name>_by_cycle``, dimension ``cycle``)."""
+
+
+def every_cycle(ds: xr.Dataset, first_stage: int = 2, stages_per_cycle: int = 3) -> xr.Dataset:
+    """``<name>_by_cycle`` for :data:`BY_CYCLE`: the cycle properties of cycles 1, 2, ... of every run.
+
+    A run with fewer cycles than the longest (a sweep over ``cycles``) is NaN for the missing ones.
+    """
+    n = (int(np.nanmax(ds["stage"].values)) - first_stage + 1) // stages_per_cycle
+    if n < 1:
+        raise ValueError(f"no complete cycle recorded (stages {first_stage}.. in groups of {stages_per_cycle})")
+    parts = [cycle_properties(ds, cycle=c, first_stage=first_stage, stages_per_cycle=stages_per_cycle)[list(BY_CYCLE)]
+             for c in range(n)]
+    out = xr.concat(parts, dim="cycle").assign_coords(
+        cycle=("cycle", np.arange(1, n + 1), {"units": "1", "long_name": "cycle number"}))
+    lead = _lead_dims(ds)
+    return xr.Dataset({f"{k}_by_cycle": out[k].transpose(*lead, "cycle").assign_attrs(_attrs(f"{k}_by_cycle"))
+                       for k in BY_CYCLE})
 
 
 def replica_statistics(props: xr.Dataset) -> xr.Dataset:

@@ -559,3 +559,13 @@ def test_envelope_command_with_a_failing_point_writes_the_others_and_exits_3(tmp
     assert ds["peak_shear_stress_mean"].values[1:] == pytest.approx([5e6, 5e6])  # the prescribed shear stress
     rows = [r for r in (tmp_path / "f_envelope.csv").read_text().splitlines() if not r.startswith("#")]
     assert rows[1].startswith("1000000,0,,")  # no complete replica: empty fields, not numbers
+
+
+def test_every_cycle_gives_each_cycle_in_closed_form():
+    cycles, c = ((2e-6, 1e13), (1e-6, 3e13), (1.5e-6, 2e13)), 8e6
+    by = P.every_cycle(ellipse_run(cycles, c))
+    assert list(by["cycle"].values) == [1, 2, 3]
+    np.testing.assert_allclose(by["secant_shear_stiffness_by_cycle"].values, [k for _, k in cycles], rtol=1e-12)
+    np.testing.assert_allclose(by["loop_dissipation_by_cycle"].values, [np.pi * a * c for a, _ in cycles], rtol=1e-3)
+    np.testing.assert_allclose(by["damping_ratio_by_cycle"].values, [c / (2 * k * a) for a, k in cycles], rtol=1e-3)
+    assert by["loop_dissipation_by_cycle"].attrs["units"] == "J m-2"
