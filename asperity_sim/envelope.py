@@ -273,6 +273,10 @@ def cyclic(scene: Scene, amplitudes, cycles: int = 2, increments: int = 8, sigma
 
 # -- files ---------------------------------------------------------------------------------
 
+_COLUMN_UNITS = {"Pa m-1": "Pa_per_m", "J m-2": "J_per_m2"}
+"""CF units as they appear in CSV column names (no spaces)."""
+
+
 def write_csv(ds: xr.Dataset, path) -> Path:
     """A plain CSV table (``#`` comment header) of the properties against the swept quantity, with standard errors."""
     path = Path(path)
@@ -300,7 +304,7 @@ def write_csv(ds: xr.Dataset, path) -> Path:
                          f"{float(f.power_law_B_high):.5f}]")
     header = [f"{x_name}_{x_unit}", "replicas_complete"]
     for k in names:
-        u = PROPERTY_VARIABLES[k].units.replace(" ", "")
+        u = _COLUMN_UNITS.get(PROPERTY_VARIABLES[k].units, PROPERTY_VARIABLES[k].units)
         header += [f"{k}_{u}", f"{k}_se_{u}"]
     status = ds["status"].values
     complete = (status == "complete").sum(axis=-1)
