@@ -569,3 +569,9 @@ def test_every_cycle_gives_each_cycle_in_closed_form():
     np.testing.assert_allclose(by["loop_dissipation_by_cycle"].values, [np.pi * a * c for a, _ in cycles], rtol=1e-3)
     np.testing.assert_allclose(by["damping_ratio_by_cycle"].values, [c / (2 * k * a) for a, k in cycles], rtol=1e-3)
     assert by["loop_dissipation_by_cycle"].attrs["units"] == "J m-2"
+
+
+def test_shipped_path_sweep_file():
+    sw = SW.load_sweep(SCENARIOS / "sweep_path_R1.toml")
+    assert sw.shape == (3, 2, 3) and sw.grid["sigma_n"] == (10e6, 100e6, 1e9) and sw.scene.k == 8
+    assert sw.scenes()[-1].law == "mdr" and sw.scenes()[-1].path.stages[-1].target[0] == pytest.approx(1e9)
