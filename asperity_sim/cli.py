@@ -8,6 +8,8 @@ Owns the user-facing commands (``python -m asperity_sim`` is the same)::
     asperity-sim presets
     asperity-sim sweep SWEEP.toml [-o OUT.nc] [--scheduler tcp://host:port | --serial] [--workers 2] [--n N]
     asperity-sim fit SURFACE [SURFACE2] -o SCENE.toml [--plot FIG.png] [--preset R1 | --scene S.toml]
+    asperity-sim envelope SCENE.toml --sigma-n "1 MPa:1 GPa:12:log" [--replicas 3] [-o OUT.nc] [...]
+    asperity-sim cyclic SCENE.toml --amplitude "0.05 um:5 um:8:log" [--cycles 2] [-o OUT.nc] [...]
 
 Every input is checked before anything runs or is written.  An error is one line on
 stderr (what, which value, what is allowed) and a non-zero exit status: 1 bad input or
@@ -121,7 +123,46 @@ def build_parser() -> argparse.ArgumentParser:
                                                         "(default: depth reached by 10 %% of the summits)")
     f.add_argument("--bootstrap", type=_int_at_least(10), default=200, help="bootstrap resamples (default 200)")
     f.add_argument("--seed", type=_seed, default=0, help="bootstrap seed (default 0)")
+    _add_joint_commands(sub, common)
     return p
+
+
+def _add_joint_commands(sub, common):
+    """The ``envelope`` and ``cyclic`` subcommands (issue 26: joint properties from sweeps over the load path)."""
+    e = sub.add_parser("envelope", parents=[common], help="strength envelope and stiffness against normal stress",
+                       description="Run SCENE.toml at several normal stresses (its stress-controlled sigma_1 set to "
+                                   "each) and write the shear properties against sigma_n with fitted Mohr-Coulomb "
+                                   "and power-law envelopes: OUT.nc, OUT.csv, OUT.png.")
+    e.add_argument("scene", type=Path, metavar="SCENE.toml")
+    e.add_argument("--sigma-n", required=True, metavar='"1 MPa:1 GPa:12:log"',
+                   help="normal stresses: start:stop:count:log|lin with units, or one stress")
+    e.add_argument("--shear-stages", metavar="2,3", help="stages of the shear segment (default: all after the first)")
+    e.add_argument("--level", type=float, default=0.95, help="confidence level of the fitted envelopes (default 0.95)")
+    c = sub.add_parser("cyclic", parents=[common], help="secant stiffness (G/Gmax) and damping against amplitude",
+                       description="Run the first stage of SCENE.toml (normal loading), then symmetric shear cycles "
+                                   "0 -> +a -> -a -> 0 at several amplitudes, and write the secant stiffness, its "
+                                   "ratio to the initial stiffness, loop energy and damping ratio of the last cycle "
+                                   "against amplitude: OUT.nc, OUT.csv, OUT.png.")
+    c.add_argument("scene", type=Path, metavar="SCENE.toml")
+    c.add_argument("--amplitude", required=True, metavar='"0.05 um:5 um:8:log"',
+                   help="shear amplitudes: start:stop:count:log|lin with units, or one length")
+    c.add_argument("--cycles", type=_positive_int, default=2, help="cycles per amplitude; the last is evaluated (default 2)")
+    c.add_argument("--increments", type=_positive_int, default=8, help="increments per quarter cycle (default 8)")
+    c.add_argument("--sigma-n", metavar='"100 MPa"', help="normal stress of the first stage (default: as in the scene)")
+    for q in (e, c):
+        q.add_argument("-o", "--output", type=Path, metavar="OUT.nc",
+                       help=f"dataset to write, with OUT.csv and OUT.png (default: <scene name>_{q.prog.split()[-1]}.nc)")
+        q.add_argument("--replicas", type=_positive_int, default=3, help="replicas (seeds) per point (default 3)")
+        q.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
+        q.add_argument("--seed", type=_seed, help="seed of the first replica (overrides [run] seed)")
+        q.add_argument("--law", choices=("paper", "mdr"), help="asperity law (overrides [run] law)")
+        where = q.add_mutually_exclusive_group()
+        where.add_argument("--scheduler", metavar="tcp://host:port", help="address of a running Dask scheduler")
+        where.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
+        where.add_argument("--local-cluster", action="store_true",
+                           help="run on a local Dask cluster (default: serial or cluster, whichever is estimated faster)")
+        q.add_argument("--workers", type=_positive_int, default=2, help="workers of a local Dask cluster (default 2)")
+        q.add_argument("-q", "--quiet", action="store_true", help="no progress line")
 
 
 def main(argv=None) -> int:
@@ -505,8 +546,86 @@ def _cmd_fit(args) -> int:
     return 0
 
 
+# -- envelope and cyclic -------------------------------------------------------------------
+
+def _joint_scene(args):
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    changes = {k: getattr(args, k) for k in ("n", "seed", "law") if getattr(args, k) is not None}
+    return scene.replace(**changes)
+
+
+def _joint_run(args, kind, run):
+    """Shared part of envelope and cyclic: output checks, engine, progress, writing, summary."""
+    from .envelope import write_products
+
+    out = _check_output(args.output or Path(f"{args.scene.stem}_{kind}.nc"), inputs=(args.scene,))
+    scheduler = "serial" if args.serial else "local" if args.local_cluster else args.scheduler
+    tty = sys.stderr.isatty() and not args.quiet
+    t0 = time.perf_counter()
+
+    def progress(done, total):
+        if tty:
+            sys.stderr.write(f"\r{kind}: {done}/{total} runs done  {time.perf_counter() - t0:6.1f} s")
+            sys.stderr.flush()
+
+    def note(message):
+        print(f"{PROG}: note: {message}", file=sys.stderr)
+
+    ds = run(scheduler, progress, note)
+    if tty:
+        sys.stderr.write("\n")
+    files = write_products(ds, out)
+    complete = int(np.sum(ds["status"].values == "complete"))
+    print(f"wrote {files['netcdf']}, {files['csv']}, {files['figure']}: {ds.attrs['runs']} runs ({complete} complete) "
+          f"on {ds.attrs['engine']}, {time.perf_counter() - t0:.1f} s")
+    if complete < ds.attrs["runs"]:
+        failed = sorted(set(ds["status"].values.ravel()) - {"complete"})
+        return _fail(f"{ds.attrs['runs'] - complete} of {ds.attrs['runs']} runs did not complete (their properties "
+                     f"are NaN in {out}): {failed[0]}", EXIT_FAILED)
+    return 0
+
+
+def cmd_envelope(args) -> int:
+    from .envelope import envelope, parse_range
+
+    scene = _joint_scene(args)
+    sigma = parse_range(args.sigma_n, "Pa", "--sigma-n")
+    stages = None
+    if args.shear_stages:
+        try:
+            stages = tuple(int(v) for v in args.shear_stages.split(","))
+        except ValueError:
+            stages = ()
+        if not stages or any(not 2 <= v <= len(scene.path.stages) for v in stages):
+            raise ValueError(f"--shear-stages = {args.shear_stages!r} is out of range (valid: comma-separated stage "
+                             f"numbers in [2, {len(scene.path.stages)}])")
+    if not 0.0 < args.level < 1.0:
+        raise ValueError(f"--level = {args.level} is out of range (valid range: 0 < level < 1)")
+    return _joint_run(args, "envelope", lambda sch, pr, no: envelope(
+        scene, sigma, replicas=args.replicas, scheduler=sch, workers=args.workers, shear_stages=stages,
+        level=args.level, progress=pr, note=no))
+
+
+def cmd_cyclic(args) -> int:
+    from .envelope import cyclic, parse_range
+    from .scene import parse_quantity
+
+    scene = _joint_scene(args)
+    amps = parse_range(args.amplitude, "m", "--amplitude")
+    sigma_n = None
+    if args.sigma_n is not None:
+        sigma_n = parse_quantity(args.sigma_n, "Pa", "--sigma-n")
+        if not sigma_n > 0.0:
+            raise ValueError(f"--sigma-n = {args.sigma_n!r} is out of range (valid range: > 0)")
+    return _joint_run(args, "cyclic", lambda sch, pr, no: cyclic(
+        scene, amps, cycles=args.cycles, increments=args.increments, sigma_n=sigma_n, replicas=args.replicas,
+        scheduler=sch, workers=args.workers, progress=pr, note=no))
+
+
 COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep,
-            "fit": _cmd_fit}
+            "fit": _cmd_fit, "envelope": cmd_envelope, "cyclic": cmd_cyclic}
 
 
 if __name__ == "__main__":

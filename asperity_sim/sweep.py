@@ -26,8 +26,27 @@ A sweep file is a scene file (:mod:`asperity_sim.scene`) with a ``[sweep]`` tabl
     [sweep.grid]                              # InterfaceParams fields, values with units
     mu = [0.5, 1.0]
     R_m = ["40 um", "50 um"]
+    sigma_n = ["10 MPa", "100 MPa"]           # load-path quantities (see apply_path):
+    amplitude = ["1 um", "5 um"]              #   normal stress, shear amplitude,
+    direction = ["0 deg", "45 deg"]           #   shear direction (deg or rad), cycles
+    cycles = [1, 2]
+    law = ["paper", "mdr"]                    # run settings: law, n, k
+    n = [5000, 20000]
     [output]
     file = "sweep.nc"                         # default <sweep file name>.nc
+
+Load-path quantities change the scene's path (:func:`apply_path`): ``cycles`` repeats the
+stages after the first; ``sigma_n`` scales every stress-controlled sigma_1 target so that
+the largest is sigma_n; ``amplitude`` scales every displacement-controlled shear target
+(Delta_2, Delta_3) so that the largest magnitude is the amplitude; ``direction`` rotates
+the shear targets about axis 1 by that angle.  Runs of different lengths (``cycles``) are
+NaN-padded to the longest path.  A run that fails (for example
+``StressNotReachableError``) keeps its error in ``status`` and NaN where it did not reach;
+the other runs complete.
+
+Engine: ``scheduler=None`` (``"auto"``) runs serially or on a local Dask cluster, whichever
+:func:`choose_engine` estimates faster for the size at hand; ``"local"`` forces the
+cluster, ``"serial"`` one process, an address or a ``Client`` an existing scheduler.
 """
 
 from __future__ import annotations
@@ -50,7 +69,8 @@ from .params import InterfaceParams
 from .scene import Scene, SceneError, check_keys, format_quantity, parse_quantity, read_toml, scene_from_dict
 
 __all__ = ["Sweep", "load_sweep", "run_sweep", "run_one", "align_run", "ensemble_statistics", "dask_available",
-           "ALIGNED", "STATISTICS"]
+           "apply_path", "choose_engine", "estimate_run_seconds", "ALIGNED", "STATISTICS", "PATH_QUANTITIES",
+           "RUN_QUANTITIES"]
 
 ALIGNED = ("displacement", "stress", "stress_stderr", "displacement_stderr", "tangent", "n_contact", "n_slip",
            "n_partial", "theta_am", "mean_theta", "external_work", "elastic_energy", "dissipation")
@@ -61,11 +81,130 @@ STATISTICS = ("displacement", "stress", "tangent", "n_contact", "n_slip", "n_par
 """Outputs that get an ensemble mean and standard error over the replicas."""
 
 
+PATH_QUANTITIES = {
+    "sigma_n": ("Pa", "largest prescribed normal stress sigma_1 of the path"),
+    "amplitude": ("m", "largest prescribed shear displacement magnitude (shear amplitude) of the path"),
+    "direction": ("rad", "shear direction: rotation of the shear targets about axis 1, from axis 2 towards 3"),
+    "cycles": ("1", "number of repetitions of the stages after the first (cycles)"),
+}
+"""Load-path quantities a sweep grid can vary: name -> (SI unit, long name)."""
+
+RUN_QUANTITIES = {
+    "law": ("1", "asperity law"),
+    "n": ("1", "sampled asperities per run"),
+    "k": ("1", "tangential springs per contact (law mdr)"),
+}
+"""Run settings a sweep grid can vary: name -> (unit, long name)."""
+
+_ANGLE = {"rad": 1.0, "deg": math.pi / 180.0, "°": math.pi / 180.0}
+
+
+def parse_angle(value, name="direction") -> float:
+    """An angle [rad] from a plain number (radians) or ``"<number> deg"`` / ``"<number> rad"``."""
+    if isinstance(value, str):
+        parts = value.split()
+        if len(parts) == 2 and parts[1] in _ANGLE:
+            try:
+                v = float(parts[0]) * _ANGLE[parts[1]]
+            except ValueError:
+                v = math.nan
+            if math.isfinite(v):
+                return v
+        raise SceneError(f"{name} = {value!r} is not an angle (write \"30 deg\", \"0.5 rad\" or a plain number "
+                         "in radians)")
+    return parse_quantity(value, "1", name)
+
+
+def _check_value(name, value):
+    """One grid value of a load-path or run quantity, checked (SceneError naming the key and the valid range)."""
+    from .laws import LAWS
+    from .population import N_MAX
+
+    where = f"sweep grid: {name}"
+    if name in ("sigma_n", "amplitude", "direction") and (isinstance(value, (bool, str))
+                                                          or not isinstance(value, (int, float, np.number))):
+        raise SceneError(f"{where} = {value!r} is not a number in {PATH_QUANTITIES[name][0]} (in a sweep file, "
+                         "quantities with units such as \"10 MPa\" are converted before this check)")
+    if name in ("sigma_n", "amplitude"):
+        v = float(value)
+        if not (math.isfinite(v) and v > 0.0):
+            raise SceneError(f"{where} = {value!r} is out of range (valid range: > 0 {PATH_QUANTITIES[name][0]})")
+        return v
+    if name == "direction":
+        v = float(value)
+        if not math.isfinite(v):
+            raise SceneError(f"{where} = {value!r} is out of range (valid range: finite angle)")
+        return v
+    if name == "law":
+        if value not in LAWS:
+            raise SceneError(f"{where} = {value!r} is not known (valid: {', '.join(LAWS)})")
+        return value
+    lo, hi = {"cycles": (1, 1000), "n": (1, N_MAX), "k": (1, 4096)}[name]
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise SceneError(f"{where} = {value!r} is out of range (valid range: integer in [{lo}, {hi}])")
+    return int(value)
+
+
+def apply_path(path: paths.LoadPath, sigma_n=None, amplitude=None, direction=None, cycles=None) -> paths.LoadPath:
+    """``path`` with its load-path quantities changed (see the module docstring); None leaves one as is.
+
+    Raises ValueError when the path has nothing the quantity could change (for example
+    ``sigma_n`` on a path without a stress-controlled sigma_1).
+    """
+    stages = list(path.stages)
+    if cycles is not None:
+        if len(stages) < 2:
+            raise ValueError(f"cycles = {cycles}: the path has one stage; cycles repeat the stages after the first")
+        stages = stages[:1] + stages[1:] * int(cycles)
+    if sigma_n is not None:
+        held = [st.target[0] for st in stages if st.control[0] == paths.STRESS]
+        if not held or max(held) <= 0.0:
+            raise ValueError(f"sigma_n = {sigma_n:.4g} Pa: the path has no stress-controlled sigma_1 > 0 to set "
+                             "(give a stage with sigma_1 = \"<stress>\")")
+        f = sigma_n / max(held)
+        stages = [dataclasses.replace(st, target=(st.target[0] * f,) + st.target[1:]) if st.control[0] == paths.STRESS
+                  else st for st in stages]
+    if amplitude is not None:
+        shear = [abs(t) for st in stages for c, t in zip(st.control[1:], st.target[1:]) if c == paths.DISPLACEMENT]
+        largest = max(shear, default=0.0)
+        if largest == 0.0:
+            raise ValueError(f"amplitude = {amplitude:.4g} m: the path has no displacement-controlled shear "
+                             "(Delta_2 or Delta_3) other than 0 to scale")
+        f = amplitude / largest
+        stages = [dataclasses.replace(st, target=(st.target[0],) + tuple(
+            t * f if c == paths.DISPLACEMENT else t for c, t in zip(st.control[1:], st.target[1:])))
+            for st in stages]
+    if direction is not None:
+        c, s = math.cos(direction), math.sin(direction)
+        rotated = []
+        for i, st in enumerate(stages, 1):
+            t2, t3 = st.target[1:]
+            if st.control[1] != st.control[2]:
+                if t2 != 0.0 or t3 != 0.0:
+                    raise ValueError(f"direction: stage {i} controls Delta and sigma in the shear plane; "
+                                     "only a stage with both shear components of one kind can be rotated")
+                rotated.append(st)
+                continue
+            rotated.append(dataclasses.replace(st, target=(st.target[0], c * t2 - s * t3, s * t2 + c * t3)))
+        stages = rotated
+    return paths.LoadPath(tuple(stages), name=path.name)
+
+
+def _grid_kind(name):
+    if name in PATH_QUANTITIES:
+        return "path"
+    if name in RUN_QUANTITIES:
+        return "run"
+    return "param"
+
+
 @dataclass(frozen=True)
 class Sweep:
     """A scene run at every point of a parameter grid, ``len(seeds)`` times each.
 
-    grid : {InterfaceParams field: tuple of values [SI]}, in the order of the output dimensions
+    grid : {name: tuple of values}, in the order of the output dimensions; a name is an
+        InterfaceParams field [SI], a load-path quantity (:data:`PATH_QUANTITIES`: sigma_n [Pa],
+        amplitude [m], direction [rad], cycles) or a run setting (:data:`RUN_QUANTITIES`: law, n, k)
     seeds : one seed per replica (default: scene.seed + 0, 1, ..., replicas - 1)
     """
 
@@ -80,9 +219,10 @@ class Sweep:
         units = InterfaceParams.units()
         grid = {}
         for name, values in dict(self.grid).items():
-            if name not in units:
-                raise SceneError(f"sweep grid: unknown parameter {name!r} (valid: {', '.join(units)})")
-            vals = tuple(float(v) for v in values)
+            if name not in units and name not in PATH_QUANTITIES and name not in RUN_QUANTITIES:
+                raise SceneError(f"sweep grid: unknown parameter {name!r} (valid: "
+                                 f"{', '.join([*units, *PATH_QUANTITIES, *RUN_QUANTITIES])})")
+            vals = tuple(float(v) if name in units else _check_value(name, v) for v in values)
             if not vals:
                 raise SceneError(f"sweep grid: {name} has no values")
             if len(set(vals)) != len(vals):
@@ -96,9 +236,9 @@ class Sweep:
         if len(set(seeds)) != len(seeds):
             raise SceneError(f"sweep seeds = {list(seeds)} repeat a seed (replicas would be identical)")
         object.__setattr__(self, "seeds", tuple(int(s) for s in seeds))
-        for point in self.points():  # every grid point must be a valid interface before anything runs
+        for point in self.points():  # every grid point must be a valid run before anything runs
             try:
-                self.scene.params.replace(**point)
+                self.scene_at(point)
             except ValueError as err:
                 raise SceneError(f"sweep grid point {point}: {err}") from None
 
@@ -115,10 +255,21 @@ class Sweep:
         names = list(self.grid)
         return [dict(zip(names, combo)) for combo in itertools.product(*self.grid.values())]
 
+    def scene_at(self, point: dict) -> Scene:
+        """The scene of one grid point (interface parameters, load path and run settings applied)."""
+        kinds = {k: _grid_kind(k) for k in point}
+        params = self.scene.params.replace(**{k: v for k, v in point.items() if kinds[k] == "param"})
+        path = apply_path(self.scene.path, **{k: v for k, v in point.items() if kinds[k] == "path"})
+        return self.scene.replace(params=params, path=path, snapshots=None,
+                                  **{k: v for k, v in point.items() if kinds[k] == "run"})
+
     def scenes(self) -> list[Scene]:
         """One scene per run, in C order of (grid..., replica)."""
-        return [self.scene.replace(params=self.scene.params.replace(**point), seed=seed, snapshots=None)
-                for point in self.points() for seed in self.seeds]
+        return [self.scene_at(point).replace(seed=seed) for point in self.points() for seed in self.seeds]
+
+    def longest_path(self) -> paths.LoadPath:
+        """The path with the most nominal steps over the grid (the others are its prefixes in stage structure)."""
+        return max((self.scene_at(p).path for p in self.points()), key=lambda pth: sum(s.increments for s in pth.stages))
 
     def default_output(self) -> Path:
         return self.output if self.output is not None else Path(f"{Path(self.source).stem}.nc")
@@ -160,17 +311,28 @@ def load_sweep(path) -> Sweep:
     if not isinstance(grid_table, dict):
         raise SceneError(f"{where}[sweep] grid must be a table [sweep.grid] of parameter = [values]")
     units = InterfaceParams.units()
-    check_keys(grid_table, tuple(units), f"{where}[sweep.grid] ")
+    check_keys(grid_table, (*units, *PATH_QUANTITIES, *RUN_QUANTITIES), f"{where}[sweep.grid] ")
     grid = {}
     for name, values in grid_table.items():
         if not isinstance(values, list) or not values:
             raise SceneError(f"{where}[sweep.grid] {name} = {values!r} must be a non-empty list of values")
-        grid[name] = tuple(parse_quantity(v, units[name], f"{where}[sweep.grid] {name}") for v in values)
+        grid[name] = tuple(_grid_value(name, v, f"{where}[sweep.grid] {name}") for v in values)
     try:
         title = data.get("title") or (f"sweep of: {scene.title}" if scene.title else "")
         return Sweep(scene=scene, grid=grid, seeds=seeds, output=scene.output, title=title, source=str(path))
     except SceneError as err:
         raise SceneError(f"{where}{err}") from None
+
+
+def _grid_value(name, value, where):
+    units = InterfaceParams.units()
+    if name in units:
+        return parse_quantity(value, units[name], where)
+    if name == "direction":
+        return parse_angle(value, where)
+    if name in ("sigma_n", "amplitude"):
+        return parse_quantity(value, PATH_QUANTITIES[name][0], where)
+    return value  # law, n, k, cycles: checked by Sweep
 
 
 def _seeds(table, base_seed, where):
@@ -274,6 +436,10 @@ def run_one(scene: Scene, threads: int | None = None) -> dict:
         ds = scene.simulate(output=None)
     except SimulationError as err:
         ds = err.dataset
+        if ds is None:
+            return _failed(f"failed: {type(err).__name__}: {err}", time.perf_counter() - t0)
+    except (ValueError, ArithmeticError) as err:  # a point the run itself rejects: recorded, the others go on
+        return _failed(f"error: {type(err).__name__}: {' '.join(str(err).split())}", time.perf_counter() - t0)
     wall = time.perf_counter() - t0
     aligned, exact = align_run(ds, scene.path)
     return {
@@ -289,7 +455,53 @@ def run_one(scene: Scene, threads: int | None = None) -> dict:
     }
 
 
+def _failed(status, wall):
+    """The result of a run that produced no dataset: NaN everywhere, its error in ``status``."""
+    return {"aligned": {}, "exact": False, "status": status, "n_steps": 0, "total_iterations": 0,
+            "max_iterations": 0, "total_cutbacks": 0, "wall_time": wall, "attrs": {}}
+
+
 # -- execution -----------------------------------------------------------------
+
+COST_PER_INCREMENT = {"paper": 2.4e-4, "mdr": 7.2e-4}
+"""Python-side cost of one increment [s] (Newton loop, recording): runs on one core whatever the threads."""
+COST_PER_ASPERITY_INCREMENT = {"paper": 1.3e-7, "mdr": 1.0e-7}
+"""Kernel cost on one thread [s]: paper law per asperity and increment; mdr per asperity, increment and spring.
+Kernels run on numba's threads (taken as scaling perfectly).  Both tables were fitted to serial runs of
+the 120-increment constant-normal-shear path on 2 shared cores (2 numba threads): paper 0.045 s at
+n = 2000 and 0.19 s at n = 20 000; mdr (k = 8) 0.33 s at n = 5000 and 1.06 s at n = 20 000."""
+CLUSTER_START = 8.0
+"""Start of a 2-worker LocalCluster and its first tasks [s] (worker processes import asperity_sim and load
+the numba cache): 8.7-11.4 s for a whole small sweep on it in benchmarks/sweep_auto.py (2 shared cores)."""
+
+
+def estimate_run_seconds(scene: Scene, threads: int = 1) -> float:
+    """Wall time of one run [s] on ``threads`` numba threads, from the cost tables (a rough model, for choosing)."""
+    increments = sum(s.increments for s in scene.path.stages)
+    law = scene.law if scene.law in COST_PER_INCREMENT else "mdr"
+    per = COST_PER_ASPERITY_INCREMENT[law] * (scene.k if law == "mdr" else 1)
+    return increments * (COST_PER_INCREMENT[law] + per * scene.n / max(1, threads))
+
+
+def choose_engine(scenes, workers: int = 2, cpus: int | None = None) -> tuple[str, str]:
+    """("serial" or "local", reason): the engine estimated faster for these runs.
+
+    Serial: every run on all ``cpus`` numba threads.  Local cluster: :data:`CLUSTER_START`, then
+    the runs shared by min(workers, cpus, runs) processes with cpus // workers threads each.
+    The kernels use every core either way, so a cluster gains only the Python-side work it
+    runs side by side (many small runs) and must win back its start.
+    """
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    serial = sum(estimate_run_seconds(sc, cpus) for sc in scenes)
+    share = max(1, min(workers, cpus, len(scenes)))
+    per_worker = max(1, cpus // workers)
+    cluster = CLUSTER_START + sum(estimate_run_seconds(sc, per_worker) for sc in scenes) / share \
+        if share > 1 else math.inf
+    choice = "local" if cluster < serial else "serial"
+    reason = (f"auto: estimated {serial:.1f} s serial, {cluster:.1f} s on a {workers}-worker local cluster "
+              f"({cpus} cores)")
+    return choice, reason
+
 
 def worker_env() -> dict:
     """Environment of local worker processes: idle OpenMP threads sleep (``OMP_WAIT_POLICY=PASSIVE``).
@@ -313,9 +525,10 @@ def run_sweep(sweep: Sweep, scheduler=None, workers: int = 2, progress=None, not
               threads: int | None = None) -> xr.Dataset:
     """Run every point of ``sweep`` and gather one Dataset (see the module docstring).
 
-    scheduler : None or "local" (a ``dask.distributed.LocalCluster`` of ``workers`` processes;
-        serial, with a note, when dask is not installed), "serial", an address such as
-        ``"tcp://host:8786"``, or a ``dask.distributed.Client``
+    scheduler : None or "auto" (serial or a local cluster, whichever :func:`choose_engine` estimates
+        faster), "local" (a ``dask.distributed.LocalCluster`` of ``workers`` processes), "serial",
+        an address such as ``"tcp://host:8786"``, or a ``dask.distributed.Client``; None, "auto"
+        and "local" run serially, with a note, when dask is not installed
     progress : callable(done, total) after each finished run
     note : callable(str) for messages to the user (default: ``logging.warning``)
     threads : numba threads per run on Dask workers (default: cores // workers on a local
@@ -332,11 +545,15 @@ def run_sweep(sweep: Sweep, scheduler=None, workers: int = 2, progress=None, not
 
 def _execute(scenes, scheduler, workers, progress, note, threads=None):
     total = len(scenes)
-    if scheduler is None or scheduler == "local":
+    why = ""
+    if scheduler in (None, "auto", "local"):
         if not dask_available():
             note("dask.distributed is not installed: running the sweep serially "
                  "(pip install 'asperity-sim[distributed]' to run it on a local cluster)")
             scheduler = "serial"
+        elif scheduler != "local":
+            scheduler, why = choose_engine(scenes, workers)
+            why = f"; {why}"
     if scheduler == "serial":
         import numba
 
@@ -349,7 +566,7 @@ def _execute(scenes, scheduler, workers, progress, note, threads=None):
                     progress(i, total)
         finally:
             numba.set_num_threads(before)
-        return results, f"serial ({numba.get_num_threads() if threads is None else threads} numba threads)"
+        return results, f"serial ({numba.get_num_threads() if threads is None else threads} numba threads{why})"
     if isinstance(scheduler, str) and scheduler != "local" and not dask_available():
         raise ValueError(f"scheduler = {scheduler!r} needs dask.distributed, which is not installed "
                          "(pip install 'asperity-sim[distributed]')")
@@ -362,7 +579,7 @@ def _execute(scenes, scheduler, workers, progress, note, threads=None):
                                    dashboard_address=None, silence_logs=logging.ERROR, env=worker_env())
             client = Client(cluster)
             threads = threads or max(1, (os.cpu_count() or 1) // workers)
-            engine = f"dask LocalCluster ({workers} workers, 1 task and {threads} numba threads each)"
+            engine = f"dask LocalCluster ({workers} workers, 1 task and {threads} numba threads each{why})"
         elif isinstance(scheduler, str):
             try:
                 client = Client(scheduler, timeout="10s")
@@ -392,11 +609,9 @@ def _execute(scenes, scheduler, workers, progress, note, threads=None):
 def assemble(sweep: Sweep, results: list, engine: str = "", wall_time: float = float("nan")) -> xr.Dataset:
     """One Dataset from the run results (C order of (grid..., replica)), with ensemble statistics."""
     shape, dims = sweep.shape, sweep.dims
-    path = sweep.scene.path
+    path = sweep.longest_path()
     stage_nom, frac_nom = nominal_schedule(path)
-    units, long_names = InterfaceParams.units(), InterfaceParams.long_names()
-    coords = {name: (name, np.array(vals), {"units": units[name], "long_name": long_names[name] + " (swept)"})
-              for name, vals in sweep.grid.items()}
+    coords = {name: (name, np.array(vals), _grid_attrs(name)) for name, vals in sweep.grid.items()}
     coords["replica"] = ("replica", np.arange(len(sweep.seeds)), {"units": "1", "long_name": "replica"})
     coords["seed"] = ("replica", np.array(sweep.seeds, dtype="i8"), {"units": "1", "long_name": "sampling seed"})
     coords["step"] = ("step", np.arange(stage_nom.size), {"units": "1", "long_name": "nominal step of the load path"})
@@ -404,12 +619,19 @@ def assemble(sweep: Sweep, results: list, engine: str = "", wall_time: float = f
     coords["stage_fraction"] = ("step", frac_nom, {"units": "1", "long_name": "fraction of the stage reached"})
     coords["axis"] = ("axis", np.array([1, 2, 3], dtype="i4"),
                       {"units": "1", "long_name": "component: 1 normal (closure), 2 and 3 shear"})
-    first = results[0]
     data = {}
-    for name, arr in first["aligned"].items():
-        extra = ("step", "axis", "axis_k")[: arr.ndim]
-        stacked = np.stack([r["aligned"][name] for r in results]).reshape(shape + arr.shape)
-        data[name] = (dims + extra, stacked, first["attrs"][name])
+    for name in ALIGNED:
+        have = [r for r in results if name in r["aligned"]]
+        if not have:
+            continue
+        trailing = have[0]["aligned"][name].shape[1:]
+        stacked = np.full((len(results), stage_nom.size) + trailing, np.nan)
+        for i, r in enumerate(results):
+            if name in r["aligned"]:
+                a = r["aligned"][name]
+                stacked[i, : a.shape[0]] = a  # shorter paths (fewer cycles) are NaN-padded
+        extra = ("step", "axis", "axis_k")[: 1 + len(trailing)]
+        data[name] = (dims + extra, stacked.reshape(shape + stacked.shape[1:]), have[0]["attrs"][name])
     if "tangent" in data:
         coords["axis_k"] = ("axis_k", np.array([1, 2, 3], dtype="i4"),
                             {"units": "1", "long_name": "displacement component of the tangent"})
@@ -440,6 +662,23 @@ def assemble(sweep: Sweep, results: list, engine: str = "", wall_time: float = f
     return ds
 
 
+def _grid_attrs(name):
+    if name in PATH_QUANTITIES or name in RUN_QUANTITIES:
+        unit, long_name = {**PATH_QUANTITIES, **RUN_QUANTITIES}[name]
+        return {"units": unit, "long_name": long_name + " (swept)"}
+    return {"units": InterfaceParams.units()[name], "long_name": InterfaceParams.long_names()[name] + " (swept)"}
+
+
+def _format_grid_value(name, value):
+    if name in InterfaceParams.units():
+        return format_quantity(value, InterfaceParams.units()[name])
+    if name in ("sigma_n", "amplitude"):
+        return format_quantity(value, PATH_QUANTITIES[name][0])
+    if name == "direction":
+        return f"{math.degrees(value):.6g} deg"
+    return str(value)
+
+
 def ensemble_statistics(ds: xr.Dataset) -> xr.Dataset:
     """Add ``<var>_mean`` and ``<var>_sem`` (standard error of the mean) over ``replica`` (NaN-aware).
 
@@ -463,8 +702,7 @@ def ensemble_statistics(ds: xr.Dataset) -> xr.Dataset:
 def _sweep_attributes(sweep: Sweep, engine: str, wall_time: float) -> dict:
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     scene = sweep.scene
-    grid = "; ".join(f"{k} = [{', '.join(format_quantity(v, InterfaceParams.units()[k]) for v in vals)}]"
-                     for k, vals in sweep.grid.items())
+    grid = "; ".join(f"{k} = [{', '.join(_format_grid_value(k, v) for v in vals)}]" for k, vals in sweep.grid.items())
     attrs = {
         "Conventions": "CF-1.8",
         "title": sweep.title or f"asperity_sim sweep: {scene.path.name} path, law {scene.law}",
@@ -480,11 +718,15 @@ def _sweep_attributes(sweep: Sweep, engine: str, wall_time: float) -> dict:
         "runs": int(math.prod(sweep.shape)),
         "engine": engine,
         "wall_time_s": wall_time,
-        "law": scene.law,
+        "law": scene.law if "law" not in sweep.grid else "swept: see the coordinate law",
         "policy": scene.policy,
         "sampler": scene.sampler,
-        "n_asperities": scene.n,
-        "load_path": scene.path.describe(),
+        "n_asperities": scene.n if "n" not in sweep.grid else "swept: see the coordinate n",
+        "load_path": sweep.longest_path().describe() if any(k in PATH_QUANTITIES for k in sweep.grid)
+        else scene.path.describe(),
+        "load_path_note": ("load-path quantities swept (" + ", ".join(k for k in sweep.grid if k in PATH_QUANTITIES)
+                           + "): see the coordinates; load_path is the path of the longest grid point")
+        if any(k in PATH_QUANTITIES for k in sweep.grid) else "not swept",
         "alignment": "runs on the nominal schedule of the path; interpolated in the stage fraction where a run "
                      "took cut-backs or adaptive steps (see aligned_exactly)",
         "asperity_sim_version": __version__,
@@ -513,10 +755,11 @@ def plot_sweep(ds: xr.Dataset):
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     styles = {1: "-", 2: "--", 3: ":"}
-    n = float(ds.attrs.get("n_asperities", 1))
     for j in range(stacked.sizes["point"]):
         p = stacked.isel(point=j)
-        label = ", ".join(f"{g} = {float(p[g]):.4g}" for g in grid) or "ensemble"
+        n = float(p["n"]) if "n" in grid else float(ds.attrs.get("n_asperities", 1))  # n may be swept
+        label = ", ".join(f"{g} = {p[g].item():.4g}" if ds[g].dtype.kind in "fiu" else f"{g} = {p[g].item()}"
+                          for g in grid) or "ensemble"
         color = colors[j % len(colors)]
         d = p["displacement_mean"].values
         ok = np.all(np.isfinite(d), axis=1)

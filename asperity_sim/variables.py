@@ -82,3 +82,42 @@ COORDS = {
 }
 
 ALL_VARIABLES = {**STEP_VARIABLES, **HISTORY_VARIABLES, **LAW_EVENT_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
+
+PROPERTY_VARIABLES = {  # derived joint properties (asperity_sim.properties, asperity_sim.envelope); dims:
+    # "point" stands for the grid and replica dimensions of the sweep they come from
+    "peak_shear_stress": Var(("point",), "f8", "Pa", "peak shear stress: largest shear stress of the shear stage"),
+    "peak_shear_displacement": Var(("point",), "f8", "m", "shear displacement at the peak shear stress"),
+    "peak_normal_stress": Var(("point",), "f8", "Pa", "normal stress sigma_1 at the peak shear stress"),
+    "peak_friction": Var(("point",), "f8", "1", "friction coefficient tau/sigma_1 at the peak shear stress"),
+    "residual_shear_stress": Var(("point",), "f8", "Pa",
+                                 "residual shear stress: shear stress at the last step of the shear stage"),
+    "residual_friction": Var(("point",), "f8", "1", "friction coefficient tau/sigma_1 at the last step of shear"),
+    "dilation_angle_peak": Var(("point",), "f8", "rad",
+                               "dilation angle atan(-dDelta_1/ds) at the peak shear stress (positive: opening)"),
+    "normal_stress_start": Var(("point",), "f8", "Pa", "normal stress sigma_1 at the start of shear"),
+    "normal_stiffness": Var(("point",), "f8", "Pa m-1", "normal stiffness dsigma_1/dDelta_1 at the start of shear"),
+    "shear_stiffness": Var(("point",), "f8", "Pa m-1",
+                           "shear stiffness dtau/ds (tangent along the shear direction) at the start of shear"),
+    "cycle_amplitude": Var(("point",), "f8", "m", "shear displacement amplitude a of the cycle (half its span)"),
+    "secant_shear_stiffness": Var(("point",), "f8", "Pa m-1",
+                                  "secant shear stiffness (tau(+a) - tau(-a)) / 2a of the cycle"),
+    "secant_stiffness_ratio": Var(("point",), "f8", "1",
+                                  "secant shear stiffness over the shear stiffness at the start of shear (G/Gmax)"),
+    "loop_dissipation": Var(("point",), "f8", "J m-2",
+                            "energy dissipated in the cycle: loop area, closed integral of tau ds (trapezoid)"),
+    "cycle_dissipation": Var(("point",), "f8", "J m-2",
+                             "increase of the recorded frictional dissipation over the cycle (history laws)"),
+    "damping_ratio": Var(("point",), "f8", "1", "equivalent damping ratio W_d / (4 pi W_s), W_s = k_sec a2 / 2"),
+    "secant_shear_stiffness_by_cycle": Var(("point", "cycle"), "f8", "Pa m-1", "secant shear stiffness of each cycle"),
+    "loop_dissipation_by_cycle": Var(("point", "cycle"), "f8", "J m-2", "loop area of each cycle"),
+    "cycle_dissipation_by_cycle": Var(("point", "cycle"), "f8", "J m-2",
+                                      "increase of the recorded dissipation over each cycle (history laws)"),
+    "damping_ratio_by_cycle": Var(("point", "cycle"), "f8", "1", "equivalent damping ratio of each cycle"),
+    "mc_cohesion": Var(("strength",), "f8", "Pa", "Mohr-Coulomb cohesion c of tau = c + sigma_n tan(phi)"),
+    "mc_friction_angle": Var(("strength",), "f8", "rad", "Mohr-Coulomb friction angle phi of tau = c + sigma_n tan(phi)"),
+    "power_law_A": Var(("strength",), "f8", "Pa",
+                       "power-law envelope coefficient A of tau = A (sigma_n / sigma_ref)^B (tau at sigma_ref)"),
+    "power_law_B": Var(("strength",), "f8", "1", "power-law envelope exponent B of tau = A (sigma_n / sigma_ref)^B"),
+}
+
+ALL_VARIABLES = {**ALL_VARIABLES, **PROPERTY_VARIABLES}
