@@ -478,8 +478,11 @@ the numba cache): 8.7-11.4 s for a whole small sweep on it in benchmarks/sweep_a
 def estimate_run_seconds(scene: Scene, threads: int = 1) -> float:
     """Wall time of one run [s] on ``threads`` numba threads, from the cost tables (a rough model, for choosing)."""
     increments = sum(s.increments for s in scene.path.stages)
-    law = scene.law if scene.law in COST_PER_INCREMENT else "mdr"
-    per = COST_PER_ASPERITY_INCREMENT[law] * (scene.k if law == "mdr" else 1)
+    from .laws import get
+
+    history = get(scene.law).history is not None  # a history law's cost grows with its springs
+    law = scene.law if scene.law in COST_PER_INCREMENT else ("mdr" if history else "paper")
+    per = COST_PER_ASPERITY_INCREMENT[law] * (scene.k if history else 1)
     return increments * (COST_PER_INCREMENT[law] + per * scene.n / max(1, threads))
 
 

@@ -46,6 +46,7 @@ import numba
 import numpy as np
 
 from . import FULL_SLIP, PARTIAL, STICK, History, Law, register
+from ..geometry import fsqrt
 from .hertz import hertz, hertz_energy
 
 FLOOR_FRACTION = 1e-5  # dn_floor / ((alpha + 1) beta)
@@ -199,6 +200,90 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, work, stored_change, dissipation
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
+    """:func:`springs` of a committed contact in a trial, without energy or scratch: the hot loop of a run.
+
+    The springs in contact (count and sum of u_i in closed form) are visited once, in storage
+    order; those beyond the stored ones enter in this increment and are summed in closed form.
+    Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip).
+    """
+    c = h * h / R
+    q = 2.0 * E_star * h / lam
+    lm = lam * mu
+    f_n, k_n = hertz(dn, R, E_star)
+    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
+    rho = f_n / (2.0 * E_star * h * sum_u) if sum_u > 0.0 else 1.0
+    drho = rho * (k_n / f_n - n_in / sum_u) if sum_u > 0.0 else 0.0
+    lm_r = lm * rho
+    can_stick = lm != 0.0
+    gap = dn - dn_c
+    n_store = w.shape[0]
+    Fs = Ft = J10 = J11 = J12 = J20 = J21 = J22 = 0.0
+    n_slip = 0
+    inv_gap = 1.0 / gap
+    inv_gap2 = inv_gap * inv_gap
+    dlim0, dlim1 = lm * rho, lm * drho
+    n_stick = 0.0
+    # branch-free (selects) so that LLVM vectorises the loop over the springs
+    for i in range(min(n_in, n_store)):
+        x2 = c * (i + 0.5) * (i + 0.5)
+        u = dn - x2
+        u_c = dn_c - x2
+        w0, w1 = float(w[i, 0]), float(w[i, 1])
+        memory = (u_c > 0.0) | (w0 != 0.0) | (w1 != 0.0)  # else entering in this increment
+        a = 1.0 if memory else u * inv_gap
+        da = 0.0 if memory else -u_c * inv_gap2
+        ws, wt = w0 + a * dds, w1 + a * ddt
+        limit = lm_r * u
+        m2 = ws * ws + wt * wt
+        stick = can_stick & (m2 <= limit * limit)
+        mm = fsqrt(m2)
+        inv_m = 1.0 / mm if mm > 0.0 else 0.0
+        es, et = ws * inv_m, wt * inv_m
+        ratio = limit * inv_m
+        P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
+        dlim = dlim0 + u * dlim1
+        bs, bt = da * dds, da * ddt
+        Fs += ws if stick else limit * es
+        Ft += wt if stick else limit * et
+        J10 += bs if stick else P00 * bs + P01 * bt + dlim * es
+        J20 += bt if stick else P01 * bs + P11 * bt + dlim * et
+        J11 += a if stick else a * P00
+        J12 += 0.0 if stick else a * P01
+        J21 += 0.0 if stick else a * P01
+        J22 += a if stick else a * P11
+        n_stick += 1.0 if stick else 0.0
+    n_slip = min(n_in, n_store) - int(n_stick)
+    m = n_in - n_store
+    if m > 0:  # every entering spring takes u_i / gap of the increment: all stick or all slip together
+        _, tail_u, tail_uc = entering_tail(n_store, dn, dn_c, c)
+        if can_stick and dds * dds + ddt * ddt <= (lm_r * gap) ** 2:
+            Fs += tail_u / gap * dds
+            Ft += tail_u / gap * ddt
+            J10 += tail_uc / (gap * gap) * dds
+            J20 += tail_uc / (gap * gap) * ddt
+            J11 += tail_u / gap
+            J22 += tail_u / gap
+        else:
+            n_slip += m
+            dd = math.sqrt(dds * dds + ddt * ddt)
+            es, et = (dds / dd, ddt / dd) if dd > 0.0 else (0.0, 0.0)
+            ratio = lm_r * gap / dd if dd > 0.0 else 0.0
+            P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
+            bs, bt = tail_uc / (gap * gap) * dds, tail_uc / (gap * gap) * ddt
+            dlim_sum = lm * (rho * m + drho * tail_u)
+            J10 += P00 * bs + P01 * bt + dlim_sum * es
+            J20 += P01 * bs + P11 * bt + dlim_sum * et
+            J11 += tail_u / gap * P00
+            J12 += tail_u / gap * P01
+            J21 += tail_u / gap * P01
+            J22 += tail_u / gap * P11
+            Fs += lm_r * tail_u * es
+            Ft += lm_r * tail_u * et
+    return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J21, q * J22, n_in, n_slip
+
+
 @numba.njit(cache=True, inline="always")
 def entering_tail(i0, dn, dn_c, c):
     """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
@@ -249,6 +334,14 @@ def state_code(n_springs, n_slip):
     return FULL_SLIP if n_slip == n_springs else PARTIAL
 
 
+@numba.njit(cache=True)
+def fresh_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled):
+    """:func:`springs` of a contact without history in a trial."""
+    Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, _, _, _ = springs(
+        dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, True, w, False)
+    return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip
+
+
 @numba.njit(cache=True, inline="always")
 def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     """Force, Jacobian and state code of one contact (dn > 0) from its committed springs; reads only."""
@@ -257,8 +350,12 @@ def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     row = 0 if fresh else sl
     h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[row])
     f_n, k_n = hertz(dn, R, E_star)
-    Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, _, _, _ = springs(
-        dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[row], h, scaled, fresh, w_all[row], False)
+    if fresh:  # a call, not inlined: the hot loop over committed contacts stays small
+        Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip = fresh_springs(
+            dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[row], h, scaled)
+    else:
+        Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip = committed_springs(
+            dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[sl], h)
     return (f_n, Fs, Ft, k_n, 0.0, 0.0, J10, J11, J12, J20, J21, J22, float(state_code(n_springs, n_slip)))
 
 
