@@ -16,15 +16,18 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 from . import paths, presets, reference
 from .params import InterfaceParams
 from .population import Population
-from .driver import (ConvergenceError, SimulationError, StressNotReachableError, WallTimeExceededError, resume,
-                     simulate)
+from .driver import (ConvergenceError, OutputWriteError, SimulationError, StressNotReachableError,
+                     WallTimeExceededError, resume, simulate)
 from .checkpoint import CheckpointError
 from .solver import SolverSettings
 from .single import single_contact
+from .domain import LawDomainWarning
+from . import laws
 
 __all__ = [
     "InterfaceParams", "presets", "Population", "paths", "simulate", "resume", "single_contact", "reference",
     "SolverSettings",
-    "SimulationError", "StressNotReachableError", "ConvergenceError", "WallTimeExceededError", "CheckpointError",
+    "SimulationError", "StressNotReachableError", "ConvergenceError", "WallTimeExceededError", "OutputWriteError",
+    "CheckpointError", "LawDomainWarning", "laws",
     "__version__",
 ]

@@ -706,16 +706,16 @@ N_COMMIT = 4 + 16
 
 _PATH_INDEPENDENT = {"values_follow": dict(cache=True, inline="always", error_model="numpy"),
                      "chunk_follow": dict(cache=True, error_model="numpy"),
-                     "chunk_birth": dict(cache=True, inline="always"),
-                     "chunk_any": dict(cache=True, inline="always"),
-                     "reduce_parallel": dict(cache=True, parallel=True),
-                     "reduce_serial": dict(cache=True),
-                     "snapshot_local": dict(cache=True, parallel=True)}
-_HISTORY = {"slot_pass": dict(cache=True, parallel=True),
-            "fresh_pass": dict(cache=True, parallel=True),
-            "commit_slots": dict(cache=True, parallel=True),
-            "commit_fresh": dict(cache=True, parallel=True),
-            "snapshot_slots": dict(cache=True, parallel=True)}
+                     "chunk_birth": dict(cache=True, inline="always", error_model="numpy"),
+                     "chunk_any": dict(cache=True, inline="always", error_model="numpy"),
+                     "reduce_parallel": dict(cache=True, parallel=True, error_model="numpy"),
+                     "reduce_serial": dict(cache=True, error_model="numpy"),
+                     "snapshot_local": dict(cache=True, parallel=True, error_model="numpy")}
+_HISTORY = {"slot_pass": dict(cache=True, parallel=True, error_model="numpy"),
+            "fresh_pass": dict(cache=True, parallel=True, error_model="numpy"),
+            "commit_slots": dict(cache=True, parallel=True, error_model="numpy"),
+            "commit_fresh": dict(cache=True, parallel=True, error_model="numpy"),
+            "snapshot_slots": dict(cache=True, parallel=True, error_model="numpy")}
 
 
 @functools.lru_cache(maxsize=None)

@@ -61,9 +61,9 @@ class DomainMonitor:
         s_prev, s_new = prev[1:], delta[1:]
         ds = s_new - s_prev
         n_prev, n_ds = float(np.hypot(*s_prev)), float(np.hypot(*ds))
-        if n_prev > 0.0 and n_ds > 0.0:
-            cos = float(s_prev @ ds) / (n_prev * n_ds)
-            if cos < math.cos(self.angle_tol):
+        if n_prev * n_ds > 0.0:
+            cos = float(s_prev @ ds) / (n_prev * n_ds)  # both norms > 0 (may underflow to 0 in the product)
+            if not cos >= math.cos(self.angle_tol):
                 flags |= SHEAR_TURN
         sheared = float(np.hypot(*s_new)) > 0.0
         if sheared and self.sigma_ref is None:

@@ -45,6 +45,12 @@ from .variables import DOMAIN_VARIABLES, HISTORY_VARIABLES, STEP_VARIABLES, Var
 
 
 BATCH = 64  # displacement-controlled increments per kernel call (the wall-time limit is checked between calls)
+TRUST = 1.0  # largest predictor step, in length scales of the interface (length_scale)
+SEED_MAX = 2**63 - 1  # a seed is stored as a 64-bit integer attribute
+
+
+class _Deadline(Exception):
+    """The wall-time limit passed during an increment (turned into WallTimeExceededError by the loop)."""
 
 
 class SimulationError(RuntimeError):
@@ -61,6 +67,10 @@ class StressNotReachableError(SimulationError):
 
 class ConvergenceError(SimulationError):
     """An increment did not converge even after the largest number of cut-backs."""
+
+
+class OutputWriteError(SimulationError):
+    """A run completed but its output file could not be written; ``.dataset`` holds the complete result."""
 
 
 class WallTimeExceededError(SimulationError):
@@ -130,7 +140,7 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     check_choice("sampler", sampler, SAMPLERS)
     n = _check_int("n", n, 1, N_MAX)
     if seed is not None:
-        seed = _check_int("seed", seed, 0, None)
+        seed = _check_int("seed", seed, 0, SEED_MAX)
     k = _check_int("k (springs per contact)", k, 1, 4096)
     settings = SolverSettings() if settings is None else settings
     if not isinstance(settings, SolverSettings):
@@ -139,13 +149,15 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         raise ValueError(f"population = {population!r} is not a Population")
     if population is not None and population.params != params:
         raise ValueError("population was sampled from other parameters than params")
-    output = _check_file("output", output)
+    output = _check_writable("output", _check_file("output", output))
     snaps = _check_snapshots(snapshots)
     if progress is not None and not callable(progress):
         raise ValueError(f"progress = {progress!r} must be callable or None")
     if max_wall_time is not None:
         max_wall_time = check_real("max_wall_time [s]", max_wall_time, 0.0, None, lo_open=True)
-    checkpoint = _check_file("checkpoint", checkpoint)
+    checkpoint = _check_writable("checkpoint", _check_file("checkpoint", checkpoint))
+    if output is not None and checkpoint is not None and os.path.abspath(output) == os.path.abspath(checkpoint):
+        raise ValueError(f"output and checkpoint are the same file {os.fspath(output)!r}: give two different paths")
     if checkpoint_every is not None:
         checkpoint_every = _check_int("checkpoint_every (steps)", checkpoint_every, 1, None)
         if checkpoint is None:
@@ -260,6 +272,7 @@ class _Run:
         self.rec = Recorder(total + 1, self.variables)
         self.wall_before = 0.0
         self.state = ContactState(pop, self.law, policy, k=k, spring_dtype=spring_dtype)
+        self.deadline = math.inf  # set by go() from max_wall_time; evaluations check it
         if loaded is None:
             self._fresh()
         else:
@@ -360,6 +373,8 @@ class _Run:
 
     def evaluate_at(self, delta):
         # the run's own arguments were checked once; only the solver's delta is new
+        if time.perf_counter() > self.deadline:
+            raise _Deadline
         return evaluate_unchecked(self.pop, check_delta(delta), self.state, self.ws)
 
     def take_snapshot(self, step):
@@ -459,6 +474,7 @@ class _Run:
         consistent = True  # the state is that of the last converged increment (safe to checkpoint)
         n_stages = len(path.stages)
         t0 = time.perf_counter()
+        self.deadline = math.inf if max_wall_time is None else t0 + max_wall_time
         try:
             while pos.i_stage < n_stages:
                 stage = path.stages[pos.i_stage]
@@ -500,13 +516,20 @@ class _Run:
                     s_new = 1.0 if s + ds > 1.0 - 1e-12 else s + ds
                     target_delta = np.where(free, self.delta, pos.start_delta + s_new * (end - pos.start_delta))
                     target_stress = np.where(free, pos.start_stress + s_new * (end - pos.start_stress), 0.0)
-                    guess = _predict(self.ev, self.delta, target_delta, target_stress, free)
+                    guess = _predict(self.ev, self.delta, target_delta, target_stress, free, TRUST * self.length)
                     slope = (guess - self.delta) / (s_new - s)  # d Delta / d s at s (free components)
                     if free.any() and not math.isnan(pos.prev_s):
                         guess = _cubic_predict(guess, self.delta, slope, pos, s, s_new, free)
                     # fresh contacts get springs that fit their overlap at the stage's end point
                     self.state.reference = np.where(free, self.delta, end)
-                    result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
+                    try:
+                        result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
+                    except _Deadline:
+                        failure = WallTimeExceededError(
+                            f"wall-time limit max_wall_time = {max_wall_time:g} s exceeded during an increment of "
+                            f"stage {i_stage} ({stage.name or 'unnamed'}) at {s:.4g} of the stage, after "
+                            f"{rec.size - 1} converged increments")
+                        raise failure from None
                     if not result.converged:
                         cuts += 1
                         if result.unreachable or cuts > settings.max_cutbacks or ds * 0.5 < smallest:
@@ -566,12 +589,22 @@ class _Run:
                 except Exception as err:  # noqa: BLE001 - never hide the interruption itself
                     warnings.warn(f"could not write the checkpoint of the interrupted run: {err}", stacklevel=2)
             ds_out = rec.to_dataset(attrs, population=self.pop)
+            if failure is not None:
+                failure.dataset = ds_out
             if output is not None:
                 from .io import write_netcdf
 
-                write_netcdf(ds_out, output)
-            if failure is not None:
-                failure.dataset = ds_out
+                try:
+                    write_netcdf(ds_out, output)
+                except Exception as err:  # noqa: BLE001 - the result is kept, the run's own error is never masked
+                    note = f"the result could not be written to {os.fspath(output)!r} ({type(err).__name__}: {err})"
+                    if interrupted is not None:
+                        interrupted.add_note(note + "; it is on this exception as .dataset")
+                        if not hasattr(interrupted, "dataset"):
+                            interrupted.dataset = ds_out
+                    else:
+                        raise OutputWriteError(note + "; the complete result is on this exception as .dataset",
+                                               ds_out) from err
         return ds_out
 
 
@@ -649,6 +682,25 @@ def _check_int(name, value, lo, hi):
     return int(value)
 
 
+def _check_writable(name, value):
+    """A file path that can be written, checked before any work: not a folder, and its folder exists and is
+    writable or can be created (the nearest existing ancestor is a writable folder, not a file)."""
+    if value is None:
+        return None
+    path = os.path.abspath(os.fspath(value))
+    valid = "valid: a file path in a writable folder"
+    if os.path.isdir(path):
+        raise ValueError(f"{name} = {os.fspath(value)!r} is a folder ({valid})")
+    ancestor = os.path.dirname(path)
+    while not os.path.exists(ancestor):
+        ancestor = os.path.dirname(ancestor)
+    if not os.path.isdir(ancestor):
+        raise ValueError(f"{name} = {os.fspath(value)!r} lies under {ancestor!r}, which is a file ({valid})")
+    if not os.access(ancestor, os.W_OK):
+        raise ValueError(f"{name} = {os.fspath(value)!r}: the folder {ancestor!r} is not writable ({valid})")
+    return value
+
+
 def _check_file(name, value):
     if value is None:
         return None
@@ -704,8 +756,13 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
     )
 
 
-def _predict(ev, delta, target_delta, target_stress, free):
-    """Tangent predictor for the free components from the last converged state."""
+def _predict(ev, delta, target_delta, target_stress, free, limit=math.inf):
+    """Tangent predictor for the free components from the last converged state.
+
+    The step is kept within ``limit`` [m] (a trust region of the interface's length scale): near
+    zero stiffness (an unloaded interface, first contact) the tangent step is unbounded, and the
+    solver's own bracket search finds the way from a point within reach instead.
+    """
     guess = target_delta.copy()
     mask = free.tolist()
     if not any(mask):
@@ -719,7 +776,7 @@ def _predict(ev, delta, target_delta, target_stress, free):
         if t_kk != 0.0 and math.isfinite(t_kk):
             step = rhs / t_kk
             if math.isfinite(step):
-                guess[k] = delta[k] + step
+                guess[k] = delta[k] + max(-limit, min(limit, step))
         return guess
     rhs = (target_stress - ev.stress)[free] - ev.tangent[np.ix_(free, fixed)] @ (target_delta - delta)[fixed]
     T = ev.tangent[np.ix_(free, free)]
@@ -727,7 +784,8 @@ def _predict(ev, delta, target_delta, target_stress, free):
         if np.linalg.cond(T) < 1e12:
             step = np.linalg.solve(T, rhs)
             if np.all(np.isfinite(step)):
-                guess[free] = delta[free] + step
+                norm = float(np.linalg.norm(step))
+                guess[free] = delta[free] + (step if norm <= limit else step * (limit / norm))
     except np.linalg.LinAlgError:
         pass
     return guess

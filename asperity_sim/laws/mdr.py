@@ -76,10 +76,11 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     that a contact in full slip carries exactly mu f_n, as the paper law.
     """
     inv_R = 1.0 / R
+    c = h * h / R  # x_i²/R = c (i + 1/2)², computed as committed_springs does (the same stick/slip decisions)
     q = 2.0 * E_star * h / lam
     lm = lam * mu
     f_n, k_n = hertz(dn, R, E_star)
-    n_in, sum_u, _ = entering_tail(0, dn, dn_c, h * h * inv_R)
+    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
     rho = f_n / (2.0 * E_star * h * sum_u) if sum_u > 0.0 else 1.0
     # d rho / d dn: zero when h follows the overlap (both forces grow as dn^(3/2)); else d sum u / d dn = n_in
     drho = 0.0 if scaled or sum_u <= 0.0 else rho * (k_n / f_n - n_in / sum_u)
@@ -93,12 +94,12 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     tail = not fresh and not write  # a trial sums the springs beyond the stored ones in closed form
     i = 0
     while True:
-        x2 = ((i + 0.5) * h) ** 2 * inv_R
+        x2 = c * (i + 0.5) * (i + 0.5)
         u = dn - x2
         if u <= 0.0:
             break
         if tail and i == n_store:
-            m, tail_u, tail_uc = entering_tail(i, dn, dn_c, h * h * inv_R)
+            m, tail_u, tail_uc = entering_tail(i, dn, dn_c, c)
             n_springs += m
             if dds * dds + ddt * ddt <= (lm_r * gap) ** 2 and lm != 0.0:  # every entering spring sticks
                 Fs += tail_u / gap * dds
@@ -409,6 +410,7 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     buf = scratch if n_need <= scratch.shape[0] else np.zeros((n_need, 2))
     _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = springs(
         dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf, True)
+    code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
     coarsenings = 0
     while n_springs > n_store:  # coarsen: the contact outgrew its springs
         diss += q_unit * h * merge_pairs(buf, n_springs)
@@ -423,8 +425,7 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
         stored += a * a + b * b
     h_all[sl] = h
     e_new = hertz_energy(dn, R, E_star)
-    return (state_code(n_springs, n_slip), work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss,
-            1 if coarsenings else 0)
+    return code, work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss, 1 if coarsenings else 0
 
 
 def arrays(capacity, k, dtype):
