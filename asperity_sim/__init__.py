@@ -1,11 +1,11 @@
-"""asperity_sim: Monte Carlo simulator of rough interfaces (Misra & Huang; see SPEC.md).
+"""asperity_sim: Monte Carlo simulator of rough interfaces (Misra & Huang 2012; see docs/model.md).
 
 Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Population`` with
 ``evaluate``, load ``paths``, ``simulate`` (and ``resume`` from a checkpoint) and the quadrature
 ``reference``.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 import os as _os
 
