@@ -226,9 +226,13 @@ class ContactState:
             code = _checked(arrays, "code", (m,), np.int8)
             if np.any((code < 0) | (code > 3)):
                 raise ValueError("contact state codes outside [0, 3]")
+            if np.any(dn_c[asp >= 0] <= 0.0):
+                raise ValueError("a committed contact has a committed overlap <= 0")
             law_arrays = []
             for i, a in enumerate(self.arrays):
-                law_arrays.append(_checked(arrays, f"law{i}", (m,) + a.shape[1:], a.dtype))
+                law_arrays.append(_checked(arrays, f"law{i}", (m,) + a.shape[1:], a.dtype, finite=False))
+            if self.law.history.validate is not None:
+                self.law.history.validate(tuple(law_arrays), np.flatnonzero(asp >= 0))
             self._reserve(max(m, 1))
             self.flag[:] = flag
             self.asp[:m], self.dn_c[:m], self.code[:m] = asp, dn_c, code

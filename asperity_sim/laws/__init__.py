@@ -53,6 +53,8 @@ class History:
     events : name of the per-step count that ``commit`` returns as ``events`` (e.g. coarsenings)
     events_long_name : its long name in the output
     bytes_per_contact : (k, dtype) -> bytes of the arrays per slot
+    validate : (arrays, live slots) -> None, raising ValueError for a state the kernels cannot use
+        (read from a checkpoint, say)
     """
 
     arrays: Callable
@@ -61,6 +63,7 @@ class History:
     events: str
     events_long_name: str
     bytes_per_contact: Callable
+    validate: Callable | None = None  # (arrays, live slots) -> None, ValueError if the state cannot be used
 
 
 @dataclass(frozen=True)

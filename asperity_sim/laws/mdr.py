@@ -433,6 +433,16 @@ def arrays(capacity, k, dtype):
     return np.zeros((capacity, 2 * k, 2), dtype=dtype), np.zeros(capacity)
 
 
+def validate(arrays, live):
+    """Springs finite, and a positive spacing for every committed contact (a zero spacing never ends a loop)."""
+    w, h = arrays
+    if not np.all(np.isfinite(w)):
+        raise ValueError("spring array holds non-finite values")
+    hl = h[live]
+    if not np.all(np.isfinite(hl) & (hl > 0.0)):
+        raise ValueError("a committed contact has a spring spacing that is not finite and > 0 [m]")
+
+
 def bytes_per_contact(k, dtype):
     return 2 * k * 2 * np.dtype(dtype).itemsize + 8
 
@@ -447,7 +457,7 @@ MDR = register(Law(
     constants=constants,
     history=History(arrays=arrays, trial=mdr_trial, commit=mdr_commit, events="coarsenings",
                     events_long_name="contacts whose springs were coarsened in the increment",
-                    bytes_per_contact=bytes_per_contact),
+                    bytes_per_contact=bytes_per_contact, validate=validate),
     domain="any path",
     spring_dtypes=("float64", "float32"),
 ))
