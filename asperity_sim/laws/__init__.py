@@ -99,13 +99,14 @@ class Law:
         """Short hash of the source the law's kernels are built from: compiled reductions are cached under it.
 
         numba invalidates a cached kernel only when its own file changes, not when a function it
-        calls does; the hash covers the files that define the law's kernels, the laws package
-        (shared contact physics) and the geometry, so a change in any of them compiles anew.
+        calls does; the hash covers the files that define the law's kernels, the shared Hertz
+        contact and the geometry, so a change in any of them compiles anew (a law whose kernels
+        call helpers from other files should keep them in its own file).
         """
         funcs = [self.local] if self.local is not None else [self.history.trial, self.history.commit]
         files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs}
         here = Path(__file__).parent
-        files |= set(here.glob("*.py")) | {here.parent / "geometry.py"}
+        files |= {here / "hertz.py", here.parent / "geometry.py"}
         h = hashlib.sha256(self.name.encode())
         for path in sorted(files):
             h.update(path.read_bytes())
