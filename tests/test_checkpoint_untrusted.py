@@ -513,3 +513,16 @@ def test_forged_population_arrays_never_reach_a_kernel(saved, tmp_path, law):
         pytest.xfail(f"driver-side validation pending: {len(wrong)} forged population arrays raise ValueError "
                      "from Population.__post_init__, not yet CheckpointError (driver._population_from must use "
                      "checkpoint.guard)")
+
+
+def test_netcdf_temporaries_of_a_killed_write_are_removed_by_the_next_write(tmp_path):
+    import xarray as xr
+
+    from asperity_sim.io import write_netcdf
+
+    out = tmp_path / "run.nc"
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = tmp_path / f".run.nc.{int(dead.stdout)}.k3j4.tmp"  # what a SIGKILL mid-write leaves
+    stale.write_bytes(b"\x89HDF half a file")
+    write_netcdf(xr.Dataset({"x": ("a", np.arange(3.0))}), out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.nc"]
