@@ -439,6 +439,7 @@ def forge(arrays, name, how, rng):
 HOWS = ("nan", "inf", "huge", "negative", "reverse", "shorter", "longer", "flat", "float32", "to_int", "to_float",
         "scalar", "drop")
 
+CASE_TIMEOUT = 10.0  # s per forged file: an intact run of this size resumes in well under a second
 CHILD = textwrap.dedent("""
     import faulthandler, json, pickle, sys
     faulthandler.enable()
@@ -468,18 +469,44 @@ def forged_outcomes(saved, folder, law, cases):
                  if not (n == name and forged is None)}
         files[str(write_zip(folder / f"forged{k}.npz", parts))] = (name, how)
     (folder / "full.pkl").write_bytes(pickle.dumps(full))
+    return _resume_each(files, folder / "full.pkl")
+
+
+def _resume_each(files, full_pickle, per_file=CASE_TIMEOUT):
+    """Resume every file in a child process, one at a time; a crash or a hang (> per_file s) is an outcome too."""
+    import select
+
     todo, out = list(files), {}
-    while todo:
-        child = subprocess.run([sys.executable, "-c", CHILD.format(here=os.path.dirname(__file__),
-                                                                  full=str(folder / "full.pkl"))],
-                               input="\n".join(todo) + "\n", capture_output=True, text=True, timeout=900)
-        done = [json.loads(line) for line in child.stdout.splitlines() if line.startswith("[")]
-        for path, outcome in done:
-            out[files[path]] = outcome
-        todo = todo[len(done):]
-        if todo:  # the child died on todo[0]
-            out[files[todo[0]]] = f"child process died (return code {child.returncode}): {child.stderr[-300:]}"
-            todo = todo[1:]
+    code = CHILD.format(here=os.path.dirname(__file__), full=str(full_pickle))
+    child = None
+    try:
+        while todo:
+            if child is None or child.poll() is not None:
+                child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=subprocess.DEVNULL, text=True, bufsize=1)
+                first = True
+            path = todo.pop(0)
+            child.stdin.write(path + "\n")
+            child.stdin.flush()
+            # the first file of a child waits for its start-up (imports, numba cache) as well
+            ready, _, _ = select.select([child.stdout], [], [], per_file + (60 if first else 0))
+            first = False
+            line = child.stdout.readline() if ready else ""
+            if line.startswith("["):
+                out[files[path]] = json.loads(line)[1]
+                continue
+            if not ready:
+                child.kill()
+                out[files[path]] = f"hang: no answer within {per_file} s"
+            else:
+                child.wait(30)
+                out[files[path]] = f"child process died (return code {child.returncode})"
+            child = None
+    finally:
+        if child is not None:
+            child.stdin.close()
+            child.kill()
+            child.wait(30)
     return out
 
 
@@ -501,9 +528,17 @@ def test_forged_arrays_raise_checkpoint_error_or_resume_identically(saved, tmp_p
 @pytest.mark.slow
 @pytest.mark.parametrize("law", ["paper", "mdr"])
 def test_forged_population_arrays_never_reach_a_kernel(saved, tmp_path, law):
-    """Population.__post_init__ refuses them: unsorted heights, NaN, R <= 0, (cos, sin) off the circle."""
-    cases = [(name, how, 7) for name in ("pop_r", "pop_R", "pop_u", "pop_cos_phi", "pop_sin_phi")
-             for how in ("nan", "inf", "negative", "reverse", "huge", "float32", "to_int")]
+    """Population.__post_init__ refuses them: unsorted heights, NaN, R <= 0, u > pi/2, (cos, sin) off the circle.
+
+    Only forgeries that break an invariant: a valid but different population (R reversed, say) cannot be
+    told from the file alone; the driver has to compare it with ``Population.sample`` of the stored seed.
+    """
+    invalid = {"pop_r": ("nan", "inf", "negative", "reverse", "float32", "to_int", "shorter"),
+               "pop_R": ("nan", "inf", "negative", "float32", "to_int", "longer"),
+               "pop_u": ("nan", "negative", "huge", "float32"),
+               "pop_cos_phi": ("nan", "huge", "negative", "float32"),
+               "pop_sin_phi": ("nan", "inf", "huge", "negative")}
+    cases = [(name, how, 7) for name, hows in invalid.items() for how in hows]
     outcomes = forged_outcomes(saved, tmp_path, law, cases)
     crashed = {k: v for k, v in outcomes.items() if v.startswith("child process died") or v.startswith("resumed")}
     assert not crashed, crashed
