@@ -238,6 +238,10 @@ def _read_members(path) -> Arrays:
         infos = zf.infolist()
         if len(infos) > MAX_MEMBERS:
             raise CheckpointError(f"checkpoint {str(path)!r} has {len(infos)} members (at most {MAX_MEMBERS})")
+        total = sum(info.file_size for info in infos)
+        if total > size:  # stored members cannot hold more than the file: overlapping (forged) entries
+            raise CheckpointError(f"checkpoint {str(path)!r}: its members claim {total} bytes in a file of {size} "
+                                  "bytes (overlapping entries)")
         for info in infos:
             key = info.filename[:-4] if info.filename.endswith(".npy") else None
             where = f"checkpoint {str(path)!r}: member {info.filename!r}"

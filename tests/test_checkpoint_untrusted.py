@@ -561,3 +561,25 @@ def test_netcdf_temporaries_of_a_killed_write_are_removed_by_the_next_write(tmp_
     stale.write_bytes(b"\x89HDF half a file")
     write_netcdf(xr.Dataset({"x": ("a", np.arange(3.0))}), out)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.nc"]
+
+
+def test_overlapping_members_cannot_multiply_the_memory(tmp_path):
+    """Central-directory entries pointing at the same data (a zip bomb without compression) are refused."""
+    path = write_zip(tmp_path / "one.npz", {"meta.npy": meta_bytes(good_meta()), "a.npy": npy_bytes(np.zeros(4096))})
+    raw = bytearray(path.read_bytes())
+    cd = raw.find(b"PK\x01\x02", raw.find(b"a.npy") + 5)  # the central record of a.npy (after its local header)
+    while raw[cd + 46:cd + 51] != b"a.npy":
+        cd = raw.find(b"PK\x01\x02", cd + 4)
+    eocd = raw.rfind(b"PK\x05\x06")
+    record = bytes(raw[cd:eocd])  # a.npy's central record
+    copies = b"".join(record.replace(b"a.npy", f"{k:05d}".encode()[:5]) for k in range(50))
+    n_entries = int.from_bytes(raw[eocd + 10:eocd + 12], "little") + 50
+    cd_start = int.from_bytes(raw[eocd + 16:eocd + 20], "little")
+    cd_size = eocd - cd_start + len(copies)
+    tail = bytearray(raw[eocd:])
+    tail[8:10] = n_entries.to_bytes(2, "little")
+    tail[10:12] = n_entries.to_bytes(2, "little")
+    tail[12:16] = cd_size.to_bytes(4, "little")
+    bomb = tmp_path / "bomb.npz"
+    bomb.write_bytes(bytes(raw[:eocd]) + copies + bytes(tail))
+    refused(bomb, "overlapping entries")
