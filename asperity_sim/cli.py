@@ -293,6 +293,13 @@ def cmd_run(args) -> int:
     except KeyboardInterrupt:
         if bar:
             bar.close()
+        if scene is not None and out.exists():  # the driver wrote what converged: add the scene's provenance
+            try:
+                from .io import read_netcdf
+
+                _write_with_scene(read_netcdf(out), out, scene, args.scene, note="interrupted (Ctrl-C)")
+            except Exception:  # noqa: BLE001 - the run file as the driver wrote it is still there
+                pass
         raise KeyboardInterrupt(f"the converged increments are in {out}"
                                 + (f"; resume with --resume {ck}" if ck is not None else "")) from None
     if bar:
@@ -307,7 +314,7 @@ def cmd_run(args) -> int:
     return 0
 
 
-def _write_with_scene(ds, out, scene, scene_file):
+def _write_with_scene(ds, out, scene, scene_file, note=""):
     """Rewrite the run file with the scene's title, file name and text (provenance), atomically."""
     from .io import write_netcdf
 
@@ -316,7 +323,8 @@ def _write_with_scene(ds, out, scene, scene_file):
     ds.attrs["scene_file"] = str(Path(scene_file).resolve())
     ds.attrs["scene"] = Path(scene_file).read_text(encoding="utf-8")
     ds.attrs["history"] = (f"{ds.attrs.get('history', '')}\n"
-                           f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}").strip()
+                           f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}"
+                           + (f": {note}" if note else "")).strip()
     write_netcdf(ds, out)
 
 

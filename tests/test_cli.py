@@ -425,3 +425,32 @@ def test_sigkill_of_asperity_sim_run_then_resume_gives_the_same_bits(tmp_path):
     assert cli.main(["run", str(scene), "--resume", str(ck), "-o", str(out)]) == 0
     assert cli.main(["run", str(scene), "-o", str(full)]) == 0
     _same_data(read_netcdf(full), read_netcdf(out))
+
+
+def test_ctrl_c_keeps_what_converged_with_the_scene_provenance(tmp_path, monkeypatch, capsys):
+    from asperity_sim.scene import Scene
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out, ck = tmp_path / "run.nc", tmp_path / "run.npz"
+    real = Scene.simulate
+
+    def interrupted(self, **kw):
+        def progress(stage, n_stages, fraction, step, iterations):
+            if step == 4:
+                raise KeyboardInterrupt
+        return real(self, **{**kw, "progress": progress})
+
+    monkeypatch.setattr(Scene, "simulate", interrupted)
+    assert cli.main(["run", str(scene), "-o", str(out), "--checkpoint", str(ck), "--checkpoint-every", "1"]) == 130
+    line = _one_error_line(capsys.readouterr().err, 130)
+    assert f"the converged increments are in {out}; resume with --resume {ck}" in line
+    ds = read_netcdf(out)
+    assert ds.attrs["status"].startswith("interrupted") and ds.sizes["step"] >= 4
+    assert ds.attrs["scene_file"] == str(scene.resolve()) and ds.attrs["title"] == "small test scene"
+    assert "interrupted (Ctrl-C)" in ds.attrs["history"]
+    monkeypatch.undo()
+    assert cli.main(["run", str(scene), "--resume", str(ck), "-o", str(out), "--overwrite"]) == 0
+    full = tmp_path / "full.nc"
+    assert cli.main(["run", str(scene), "-o", str(full)]) == 0
+    _same_data(read_netcdf(full), read_netcdf(out))
