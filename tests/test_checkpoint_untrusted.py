@@ -353,7 +353,7 @@ def resume_outcome(path, full):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("law", ["paper", "mdr"])
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+@settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                    HealthCheck.too_slow])
 @given(data=st.data())
 def test_bit_flips_raise_checkpoint_error_or_resume_identically(saved, tmp_path, law, data):
@@ -369,7 +369,7 @@ def test_bit_flips_raise_checkpoint_error_or_resume_identically(saved, tmp_path,
 
 @pytest.mark.slow
 @pytest.mark.parametrize("law", ["paper", "mdr"])
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                    HealthCheck.too_slow])
 @given(data=st.data())
 def test_truncations_raise_checkpoint_error(saved, tmp_path, law, data):
