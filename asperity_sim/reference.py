@@ -312,7 +312,8 @@ def _stress_kernel(d1, S, c_psi, s_psi, mode, closure, k_e, E_star, lam, mu, alp
     there). The weight sin u and 2 pi xi(u, phi) of Eq. (10) are applied here.
     phi = psi + phi': ``mode`` 0 is the single node phi = 0 with weight 1 (zero shear, c, d
     integrated out by the caller); otherwise [0, pi] in phi' is cut at the breaks of
-    :func:`_phi_breaks` and each piece gets the Gauss–Legendre rule ``tp, wp`` under the map
+    :func:`_phi_breaks`, pieces longer than ``phi_chunk`` [rad] into equal parts, and each
+    part gets the Gauss–Legendre rule ``tp, wp`` under the map
     phi' = lo + L (3 t² - 2 t³) (end-point kinks of the integrand become smooth); mode 1
     (integrand even in phi': c = d = 0) uses [0, pi] only, mode 2 adds phi' -> -phi'.
     ``out`` (3,).
@@ -323,8 +324,6 @@ def _stress_kernel(d1, S, c_psi, s_psi, mode, closure, k_e, E_star, lam, mu, alp
     s1 = 0.0
     s2 = 0.0
     s3 = 0.0
-    d2 = S * c_psi
-    d3 = S * s_psi
     m = lam * mu
     th_slip = math.atan(m)
     n_side = 1 if mode == 1 else 2

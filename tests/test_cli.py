@@ -297,8 +297,6 @@ def test_info_and_plot_on_damaged_or_foreign_files_exit_1_with_one_line(tmp_path
     garbage = tmp_path / "garbage.nc"
     garbage.write_bytes(raw[:8] + bytes(range(256)) * 8)
     foreign = _foreign(tmp_path / "foreign.nc")
-    import xarray as xr
-
     no_stage = tmp_path / "no_stage.nc"
     read_netcdf(good).drop_vars(["stage", "n_slip"]).to_netcdf(no_stage, engine="netcdf4")
     cases = {cut: "not a netCDF file, or a damaged one", garbage: "not a netCDF file, or a damaged one",
@@ -311,7 +309,6 @@ def test_info_and_plot_on_damaged_or_foreign_files_exit_1_with_one_line(tmp_path
             line = _one_error_line(capsys.readouterr().err, 1)
             assert str(path) in line and word in line and "KeyError" not in line, line
     assert not (tmp_path / "f.png").exists()
-    del xr
 
 
 def _stopped_checkpoint(scene_path, ck, step):
