@@ -389,6 +389,47 @@ def _range(lo, hi, lo_open, hi_open):
     return f"{left}, {right}"
 
 
+def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> None:
+    """The checks of docs/robustness.md for the arrays whose layout the driver has kept since format 1.
+
+    Population (``pop_*``), the current and last evaluated displacement and stress (``delta``,
+    ``ev_*``), the loop position (``pos_*``) and the birth angles (``theta_birth``, policy birth).
+    History (``hist_*``), energy, recorder (``rec_*``) and snapshot arrays are the driver's to check
+    with :func:`require`.  Raises :class:`CheckpointError` naming the file, array, value and range.
+    """
+    half_pi = 0.5 * np.pi
+    f8, i8 = np.float64, np.int64
+    require(arrays, "pop_r", shape=(n,), dtype=f8, lo=0.0, sorted=True)
+    require(arrays, "pop_R", shape=(n,), dtype=f8, lo=0.0, lo_open=True)
+    require(arrays, "pop_u", shape=(n,), dtype=f8, lo=0.0, hi=half_pi)
+    for name in ("pop_cos_phi", "pop_sin_phi"):
+        require(arrays, name, shape=(n,), dtype=f8, lo=-1.0, hi=1.0)
+    for name in ("delta", "ev_delta", "ev_stress", "ev_stderr", "pos_start_delta", "pos_start_stress"):
+        require(arrays, name, shape=(3,), dtype=f8)
+    for name in ("ev_covariance", "ev_tangent"):
+        require(arrays, name, shape=(3, 3), dtype=f8)
+    require(arrays, "ev_ints", shape=(4,), dtype=i8, lo=0, hi=n)
+    require(arrays, "ev_mean_theta", shape=(1,), dtype=f8, lo=0.0, hi=half_pi)
+    pos_i = require(arrays, "pos_i", shape=(2,), dtype=i8, lo=0)
+    where = f"checkpoint {getattr(arrays, 'path', '<unknown>')!r}"
+    if pos_i[0] > n_stages or pos_i[1] > 1:
+        raise CheckpointError(f"{where}: array pos_i = {pos_i.tolist()} (valid range: stage index in [0, "
+                              f"{n_stages}] ({n_stages}: the path is done), started flag in [0, 1])")
+    pos_f = require(arrays, "pos_f", shape=(3,), dtype=f8)
+    if not (0.0 <= pos_f[0] <= 1.0 and 0.0 <= pos_f[1] <= 1.0 and (pos_f[1] > 0.0 or pos_i[1] == 0)
+            and pos_f[2] >= 0.0):
+        raise CheckpointError(f"{where}: array pos_f = {pos_f.tolist()} (valid range: s in [0, 1], ds in (0, 1] "
+                              "(0 before the stage starts), k_ref >= 0)")
+    prev = require(arrays, "pos_prev", shape=(7,), dtype=f8, finite=False)
+    if not np.isnan(prev[0]) and not (np.all(np.isfinite(prev)) and 0.0 <= prev[0] <= 1.0):
+        raise CheckpointError(f"{where}: array pos_prev = {prev.tolist()} (valid: NaN first (no previous point) or "
+                              "s in [0, 1] and a finite Delta and slope)")
+    if birth:
+        require(arrays, "theta_birth", shape=(n,), dtype=f8, finite=False, lo=0.0, hi=half_pi)
+        if np.isinf(arrays["theta_birth"]).any():
+            raise CheckpointError(f"{where}: array theta_birth holds inf (valid: NaN (not born) or [0, pi/2])")
+
+
 @contextlib.contextmanager
 def guard(path, what="is incomplete or damaged"):
     """Turn any error of mapping a checkpoint's content into a :class:`CheckpointError` naming ``path``.

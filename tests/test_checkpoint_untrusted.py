@@ -424,7 +424,7 @@ def forge(arrays, name, how, rng):
     elif how == "float32" and a.dtype.kind == "f":
         a = a.astype(np.float32)
     elif how == "to_int" and a.dtype.kind in "fb":
-        a = a.astype(np.int64)
+        a = np.nan_to_num(a).astype(np.int64)
     elif how == "to_float" and a.dtype.kind in "iub":
         a = a.astype(np.float64)
     elif how == "scalar":
@@ -608,3 +608,66 @@ def test_overlapping_members_cannot_multiply_the_memory(tmp_path):
     bomb = tmp_path / "bomb.npz"
     bomb.write_bytes(bytes(raw[:eocd]) + copies + bytes(tail))
     refused(bomb, "overlapping entries")
+
+
+# --------------------------------------------------------------------------- check_run_arrays (for the driver)
+
+@pytest.mark.parametrize("law, policy", [("paper", "follow"), ("mdr", "birth")])
+def test_check_run_arrays_accepts_genuine_checkpoints_and_refuses_forged_ones(tmp_path, law, policy):
+    ck = tmp_path / "c.npz"
+    with pytest.raises(Stop):
+        simulate(presets.S1, tiny_path(), checkpoint=ck, checkpoint_every=1, progress=stop_at(5),
+                 **{**run_kw(law), "policy": policy})
+    meta, arrays = ckpt.load(ck, asim.__version__)
+    kw = dict(n=N, n_stages=3, birth=policy == "birth")
+    ckpt.check_run_arrays(arrays, **kw)
+    rng = np.random.default_rng(1)
+    checked = ("pop_r", "pop_R", "pop_u", "pop_cos_phi", "pop_sin_phi", "delta", "ev_delta", "ev_stress",
+               "ev_stderr", "ev_covariance", "ev_tangent", "ev_ints", "ev_mean_theta", "pos_i", "pos_f",
+               "pos_start_delta", "pos_start_stress") + (("theta_birth",) if policy == "birth" else ())
+    n_cases = 0
+    for name in checked:
+        hows = list(ALWAYS) + list(RANGE.get(name, ()))
+        if np.all(np.isfinite(arrays[name])) and arrays[name].dtype.kind == "f":
+            hows += ["nan", "inf"]
+        for how in hows:
+            forged = forge(arrays, name, how, rng)
+            if forged is False:
+                continue
+            bad = ckpt.Arrays(ck, {**arrays})
+            if forged is None:
+                del bad[name]
+            else:
+                bad[name] = forged
+            with pytest.raises(CheckpointError, match=f"checkpoint '{ck}'.*{name}") as exc:
+                ckpt.check_run_arrays(bad, **kw)
+            assert "valid" in str(exc.value) or "missing" in str(exc.value) or "expected" in str(exc.value)
+            n_cases += 1
+    assert n_cases > 100
+    assert arrays["pos_i"][1] == 1  # started: ds = 0 is refused
+    for pos_f in ([0.5, 0.0, 1.0], [1.5, 0.1, 1.0], [0.5, 0.1, -1.0], [0.5, 1.5, 1.0]):
+        with pytest.raises(CheckpointError, match="pos_f"):
+            ckpt.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_f": np.array(pos_f)}), **kw)
+    with pytest.raises(CheckpointError, match=r"pos_i = \[4, 1\]"):
+        ckpt.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_i": np.array([4, 1])}), **kw)
+
+
+@pytest.mark.parametrize("law, policy", [("paper", "follow"), ("mdr", "follow"), ("paper", "birth"), ("mdr", "birth")])
+def test_check_run_arrays_accepts_every_checkpoint_of_a_run(tmp_path, law, policy):
+    """At every step, at stage ends and after the last step (pos_i[0] = number of stages)."""
+    ck = tmp_path / "c.npz"
+    seen = []
+
+    def keep(stage, n_stages, fraction, step, iterations):
+        if ck.exists():
+            seen.append(ck.read_bytes())
+
+    simulate(presets.S1, tiny_path(), checkpoint=ck, checkpoint_every=1, progress=keep,
+             **{**run_kw(law), "policy": policy})
+    seen.append(ck.read_bytes())
+    assert len(seen) >= 10
+    for i, raw in enumerate(seen):
+        path = tmp_path / f"c{i}.npz"
+        path.write_bytes(raw)
+        _, arrays = ckpt.load(path, asim.__version__)
+        ckpt.check_run_arrays(arrays, n=N, n_stages=3, birth=policy == "birth")
