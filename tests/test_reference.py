@@ -407,8 +407,9 @@ def test_no_contact_gives_zero():
 # anisotropic sets and small friction (issue 24, item 6)
 # ---------------------------------------------------------------------------------------
 
-# Drawn by benchmarks/reference_accuracy.py (seed 1, mu = 0.3, point 39): the old trapezoid rule in
-# phi was off by 7.0e-6 here (3.5e-6 with c = d = 0), against 2e-9 on the Table 1 sets.
+# A random anisotropic set (drawn like benchmarks/reference_accuracy.py does, by an earlier scratch
+# version of it: seed 1, mu = 0.3, point 39): the old trapezoid rule in phi was off by 7.0e-6 here
+# (3.5e-6 with c = d = 0), against 2e-9 on the Table 1 sets.
 ISSUE_SET = R1.replace(alpha=7.111448793670446, beta=6.668331449616249e-06, R_sigma=1.1232688008380472e-05,
                        mu=0.3, e=0.8885077098602776, r_o=2.190963760675688e-06, b=-0.222578947883589,
                        c=-0.1284993492222391, d=0.14941751290821256)
