@@ -2,11 +2,15 @@
 
 Owns the user-facing commands (``python -m asperity_sim`` is the same)::
 
-    asperity-sim run SCENE.toml [-o OUT.nc] [--n N] [--seed S] [--quiet]
-    asperity-sim plot OUT.nc [-o FIG.png]
+    asperity-sim run SCENE.toml [-o OUT.nc] [--n N] [--seed S] [--quiet] [--overwrite]
+                     [--checkpoint CK.npz [--checkpoint-every K]] [--resume CK.npz]
+    asperity-sim run --resume CK.npz [-o OUT.nc]      # from the checkpoint alone
+    asperity-sim plot OUT.nc [-o FIG.png] [--overwrite]
     asperity-sim info OUT.nc
     asperity-sim presets
     asperity-sim sweep SWEEP.toml [-o OUT.nc] [--scheduler tcp://host:port | --serial] [--workers 2] [--n N]
+                       [--overwrite]
+    asperity-sim --version
     asperity-sim fit SURFACE [SURFACE2] -o SCENE.toml [--plot FIG.png] [--preset R1 | --scene S.toml]
     asperity-sim envelope SCENE.toml --sigma-n "1 MPa:1 GPa:12:log" [--replicas 3] [-o OUT.nc] [...]
     asperity-sim cyclic SCENE.toml --amplitude "0.05 um:5 um:8:log" [--cycles 2] [-o OUT.nc] [...]
@@ -15,6 +19,14 @@ Every input is checked before anything runs or is written.  An error is one line
 stderr (what, which value, what is allowed) and a non-zero exit status: 1 bad input or
 file, 2 bad command line, 3 a run stopped before the end of its path (what converged is
 written), 130 interrupted.  ``--debug`` shows the traceback instead.
+
+Outputs (issue 24, item 5): every output path is checked before any work -- not the input, not
+a folder, its folder writable, and not an existing file unless ``--overwrite`` is given.  A
+scene's own ``[output] file`` stays inside the scene's folder (see
+:func:`asperity_sim.scene.contained_output`); ``-o`` may point anywhere.  ``--checkpoint``
+saves the whole state of the run (:mod:`asperity_sim.checkpoint`) every ``--checkpoint-every``
+converged increments (default: at stage ends); ``--resume`` continues a killed run from such a
+file to the same bits, with the scene (its run must match the checkpoint's) or alone.
 """
 
 from __future__ import annotations
@@ -59,27 +71,42 @@ _positive_int, _seed = _int_at_least(1), _int_at_least(0)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--debug", action="store_true", help="show the full traceback of an error")
     p = _Parser(prog=PROG, parents=[common],
                 description="Monte Carlo simulator of rough interfaces (Misra & Huang): run scene files, "
                             "plot and inspect run files, sweep parameters and replicas on Dask.")
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     r = sub.add_parser("run", parents=[common], help="run a scene file and write its netCDF",
                        description="Run SCENE.toml and write the run file (netCDF).")
-    r.add_argument("scene", type=Path, metavar="SCENE.toml")
+    r.add_argument("scene", type=Path, metavar="SCENE.toml", nargs="?",
+                   help="scene file (may be left out with --resume: the checkpoint holds the run)")
     r.add_argument("-o", "--output", type=Path, metavar="OUT.nc",
-                   help="run file to write (default: [output] file of the scene, else <scene name>.nc)")
+                   help="run file to write (default: [output] file of the scene, inside the scene's folder, "
+                        "else <scene name>.nc; with --resume alone, <checkpoint name>.nc)")
     r.add_argument("--n", type=_positive_int, help="sampled asperities (overrides [run] n)")
     r.add_argument("--seed", type=_seed, help="sampling seed (overrides [run] seed)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing run file")
+    r.add_argument("--checkpoint", type=Path, metavar="CK.npz",
+                   help="save the whole state of the run to CK.npz (atomically) as it goes, so that a killed "
+                        "run can be resumed with --resume CK.npz")
+    r.add_argument("--checkpoint-every", type=_positive_int, metavar="K",
+                   help="checkpoint every K converged increments (default: at the end of every stage)")
+    r.add_argument("--resume", type=Path, metavar="CK.npz",
+                   help="continue the run saved in CK.npz (a killed run resumes to the same bits); it goes "
+                        "on checkpointing to the same file")
 
     pl = sub.add_parser("plot", parents=[common], help="draw the standard figure of a run or sweep file",
                         description="Draw the standard figure of a run (or sweep) file, from the file alone.")
     pl.add_argument("file", type=Path, metavar="OUT.nc")
     pl.add_argument("-o", "--output", type=Path, metavar="FIG.png", help="figure to write (default: OUT.png)")
+    pl.add_argument("--overwrite", action="store_true", help="replace an existing figure")
 
     i = sub.add_parser("info", parents=[common], help="summarise a run or sweep file",
                        description="Parameters, law, sample size, steps and convergence of a run (or sweep) file.")
@@ -99,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--workers", type=_positive_int, default=2, help="workers of the local Dask cluster (default 2)")
     s.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    s.add_argument("--overwrite", action="store_true", help="replace an existing sweep file")
 
     f = sub.add_parser("fit", parents=[common], help="fit a scene to measured topographies (SurfaceTopography)",
                        description="Fit N, alpha, beta, R_m, R_sigma to the summits of one topography file or of the "
@@ -216,54 +244,143 @@ def _fail(message, code) -> int:
 
 # -- run ---------------------------------------------------------------------
 
-def _check_output(path: Path, inputs=(), suffixes=(".nc", ".nc4")) -> Path:
-    """Refuse an output that would overwrite an input or is not writable; create its folder."""
+def _check_output(path: Path, inputs=(), suffixes=(".nc", ".nc4"), overwrite=False, what="output") -> Path:
+    """Refuse, before any work, an output that cannot or must not be written; create its folder.
+
+    Not the input, not a folder, an existing file only with ``--overwrite``, a folder that
+    exists (or can be created) and is writable.
+    """
     if path.suffix not in suffixes:
-        raise ValueError(f"output {str(path)!r} must end in {' or '.join(suffixes)}")
+        raise ValueError(f"{what} {str(path)!r} must end in {' or '.join(suffixes)}")
     for p in inputs:
-        if path.exists() and p.exists() and os.path.samefile(path, p):
-            raise ValueError(f"output {str(path)!r} is the input file; choose another name")
+        if p is not None and path.exists() and p.exists() and os.path.samefile(path, p):
+            raise ValueError(f"{what} {str(path)!r} is the input file {str(p)!r}; choose another name")
     if path.is_dir():
-        raise ValueError(f"output {str(path)!r} is a folder; give a file name")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not os.access(path.parent, os.W_OK):
-        raise ValueError(f"output folder {str(path.parent)!r} is not writable")
+        raise ValueError(f"{what} {str(path)!r} is a folder; give a file name")
+    if path.exists() and not overwrite:
+        raise ValueError(f"{what} {str(path)!r} exists; give --overwrite to replace it, or another name with -o")
+    folder = path.parent
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{what} folder {str(folder)!r} cannot be created: {str(existing)!r} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} folder {str(existing)!r} is not writable")
+    folder.mkdir(parents=True, exist_ok=True)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} folder {str(folder)!r} is not writable")
     return path
 
 
+def _check_checkpoint(path: Path, *, resume: bool, others=(), overwrite=False) -> Path:
+    """The checkpoint file: ends in .npz, is neither the scene nor the run file, its folder writable."""
+    from .checkpoint import SUFFIX
+
+    if path.suffix != SUFFIX:
+        raise ValueError(f"checkpoint {str(path)!r} must end in {SUFFIX}")
+    for p in others:
+        if p is not None and (path.resolve() == p.resolve()
+                              or (path.exists() and p.exists() and os.path.samefile(path, p))):
+            raise ValueError(f"checkpoint {str(path)!r} is also the file {str(p)!r}; choose another name")
+    if path.is_dir():
+        raise ValueError(f"checkpoint {str(path)!r} is a folder; give a file name")
+    if resume:
+        if not path.is_file():
+            raise ValueError(f"checkpoint {str(path)!r}: no such file (nothing to resume)")
+        if not os.access(path.parent, os.W_OK | os.X_OK):
+            raise ValueError(f"checkpoint folder {str(path.parent)!r} is not writable (a resumed run goes on "
+                             "checkpointing there)")
+        return path
+    if path.exists() and not overwrite:
+        raise ValueError(f"checkpoint {str(path)!r} exists (a killed run?); give --resume {path} to continue it, "
+                         "or --overwrite to start afresh")
+    return _check_output(path, suffixes=(SUFFIX,), overwrite=True, what="checkpoint")
+
+
 def cmd_run(args) -> int:
+    from . import resume as resume_run
     from .driver import SimulationError
     from .scene import load_scene
 
-    scene = load_scene(args.scene)
-    changes = {k: getattr(args, k) for k in ("n", "seed") if getattr(args, k) is not None}
-    scene = scene.replace(**changes)
-    out = _check_output(args.output or scene.default_output(), inputs=(args.scene,))
-    bar = None if args.quiet or not sys.stderr.isatty() else ProgressBar(scene.path, sys.stderr)
+    if args.scene is None and args.resume is None:
+        raise UsageError(f"{PROG} run: error: the following arguments are required: SCENE.toml (or --resume CK.npz) "
+                         f"(see {PROG} run --help)")
+    if args.checkpoint is not None and args.resume is not None and args.checkpoint != args.resume:
+        raise UsageError(f"{PROG} run: error: --checkpoint {args.checkpoint} and --resume {args.resume}: a resumed "
+                         f"run goes on checkpointing to the file it resumes from; give one of them "
+                         f"(see {PROG} run --help)")
+    if args.checkpoint_every is not None and args.checkpoint is None and args.resume is None:
+        raise UsageError(f"{PROG} run: error: --checkpoint-every needs --checkpoint CK.npz (see {PROG} run --help)")
+    scene = None
+    if args.scene is not None:
+        scene = load_scene(args.scene)
+        changes = {k: getattr(args, k) for k in ("n", "seed") if getattr(args, k) is not None}
+        scene = scene.replace(**changes)
+        default = scene.default_output()
+    else:
+        if args.n is not None or args.seed is not None:
+            raise UsageError(f"{PROG} run: error: --n and --seed need the scene; a checkpoint alone resumes its own "
+                             f"run (see {PROG} run --help)")
+        default = Path(args.resume.with_suffix(".nc").name)
+    out = _check_output(args.output or default, inputs=(args.scene, args.resume, args.checkpoint),
+                        overwrite=args.overwrite)
+    ck = args.resume if args.resume is not None else args.checkpoint
+    if ck is not None:
+        _check_checkpoint(ck, resume=args.resume is not None, others=(args.scene, out), overwrite=args.overwrite)
+    label = scene.path if scene is not None else None
     t0 = time.perf_counter()
+    bar = None
     try:
-        ds = scene.simulate(output=out, progress=bar)
+        if scene is None:
+            from .checkpoint import read_config
+            from . import __version__
+
+            read_config(ck, __version__)  # a damaged or foreign checkpoint is refused before the progress bar
+            ds = resume_run(ck, output=out, checkpoint_every=args.checkpoint_every or "saved")
+        else:
+            bar = None if args.quiet or not sys.stderr.isatty() else ProgressBar(label, sys.stderr)
+            kw = dict(output=out, progress=bar)
+            if ck is not None:
+                kw.update(checkpoint=ck, checkpoint_every=args.checkpoint_every)
+            if args.resume is not None:
+                kw["resume"] = args.resume
+            ds = scene.simulate(**kw)
     except SimulationError as err:
         if bar:
             bar.close()
         steps = 0
         if err.dataset is not None:
             steps = err.dataset.sizes["step"] - 1
-            _write_with_scene(err.dataset, out, scene, args.scene)
-        raise type(err)(f"run stopped: {err} [{steps} converged increments written to {out}]") from err
+            if scene is not None:
+                _write_with_scene(err.dataset, out, scene, args.scene)
+        raise type(err)(f"run stopped: {err} [{steps} converged increments written to {out}"
+                        + (f"; resume with --resume {ck}" if ck is not None else "") + "]") from err
     except KeyboardInterrupt:
         if bar:
             bar.close()
-        raise KeyboardInterrupt(f"the converged increments are in {out}") from None
+        if scene is not None and out.exists():  # the driver wrote what converged: add the scene's provenance
+            try:
+                from .io import read_netcdf
+
+                _write_with_scene(read_netcdf(out), out, scene, args.scene, note="interrupted (Ctrl-C)")
+            except Exception:  # noqa: BLE001 - the run file as the driver wrote it is still there
+                pass
+        raise KeyboardInterrupt(f"the converged increments are in {out}"
+                                + (f"; resume with --resume {ck}" if ck is not None else "")) from None
     if bar:
         bar.close()
-    _write_with_scene(ds, out, scene, args.scene)
-    print(f"wrote {out}: {scene.path.name} path, {ds.sizes['step'] - 1} increments, n = {scene.n}, "
-          f"seed = {scene.seed}, {time.perf_counter() - t0:.1f} s, status {ds.attrs.get('status')}")
+    if scene is not None:
+        _write_with_scene(ds, out, scene, args.scene)
+        what = f"{scene.path.name} path, {ds.sizes['step'] - 1} increments, n = {scene.n}, seed = {scene.seed}"
+    else:
+        what = (f"resumed from {ck}, {ds.sizes['step'] - 1} increments, n = {ds.attrs.get('n_asperities')}, "
+                f"seed = {ds.attrs.get('seed')}")
+    print(f"wrote {out}: {what}, {time.perf_counter() - t0:.1f} s, status {ds.attrs.get('status')}")
     return 0
 
 
-def _write_with_scene(ds, out, scene, scene_file):
+def _write_with_scene(ds, out, scene, scene_file, note=""):
     """Rewrite the run file with the scene's title, file name and text (provenance), atomically."""
     from .io import write_netcdf
 
@@ -272,7 +389,8 @@ def _write_with_scene(ds, out, scene, scene_file):
     ds.attrs["scene_file"] = str(Path(scene_file).resolve())
     ds.attrs["scene"] = Path(scene_file).read_text(encoding="utf-8")
     ds.attrs["history"] = (f"{ds.attrs.get('history', '')}\n"
-                           f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}").strip()
+                           f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}"
+                           + (f": {note}" if note else "")).strip()
     write_netcdf(ds, out)
 
 
@@ -305,20 +423,41 @@ def progress_line(increments, stage, n_stages, fraction, step, iterations, elaps
 
 # -- plot ----------------------------------------------------------------------
 
+RUN_VARIABLES = ("stress", "displacement", "stress_stderr", "displacement_stderr", "stage", "iterations",
+                 "cutbacks", "residual", "n_contact", "n_slip")
+SWEEP_VARIABLES = ("stress", "displacement", "status", "aligned_exactly", "total_iterations", "max_iterations",
+                   "total_cutbacks")
+
+
 def _read_run(path: Path):
+    """(dataset, kind) of a run or sweep file; one-line ValueError naming the file and what is wrong."""
     from .io import read_netcdf
 
     if not path.exists():
         raise ValueError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a run file")
     try:
         ds = read_netcdf(path)
-    except (OSError, ValueError):
-        raise ValueError(f"{path}: not a netCDF file (asperity-sim plot and info read run files written by "
-                         f"asperity-sim run or sweep)") from None
+    except Exception as err:  # noqa: BLE001 - OSError, RuntimeError (HDF5), ValueError, ... of a damaged file
+        raise ValueError(f"{path}: not a netCDF file, or a damaged one ({type(err).__name__}: {' '.join(str(err).split())}; "
+                         f"asperity-sim plot and info read run files written by asperity-sim run or sweep)") from None
     kind = ds.attrs.get("kind", "run")
     if "stress" not in ds or "displacement" not in ds:
         raise ValueError(f"{path}: not an asperity_sim run or sweep file (no stress and displacement variables)")
+    needed = SWEEP_VARIABLES if kind == "sweep" else RUN_VARIABLES
+    missing = [v for v in needed if v not in ds]
+    if "axis" not in ds.coords or sorted(np.asarray(ds["axis"].values).tolist()) != [1, 2, 3]:
+        missing.append("coordinate axis = 1, 2, 3")
+    if kind != "sweep" and ("step" not in ds.dims or ds.sizes["step"] < 1):
+        missing.append("dimension step")
+    if missing:
+        raise ValueError(f"{path}: damaged or foreign {kind} file: missing {', '.join(missing)}")
     return ds, kind
+
+
+def _damaged(path, kind, err):
+    return ValueError(f"{path}: damaged {kind} file ({type(err).__name__}: {' '.join(str(err).split())})")
 
 
 def cmd_plot(args) -> int:
@@ -335,10 +474,14 @@ def cmd_plot(args) -> int:
         raise ValueError(f"figure {str(out)!r}: unknown format {out.suffix or '(none)'!r} "
                          f"(valid: {', '.join('.' + k for k in sorted(supported))})")
     ds, kind = _read_run(args.file)
-    _check_output(out, inputs=(args.file,), suffixes=(out.suffix,))
+    _check_output(out, inputs=(args.file,), suffixes=(out.suffix,), overwrite=args.overwrite, what="figure")
     with warnings.catch_warnings():  # an empty legend of plot_run is not the user's business
         warnings.filterwarnings("ignore", message="No artists with labels found")
-        fig = plot_sweep(ds) if kind == "sweep" else plot_run(ds)
+        try:
+            fig = plot_sweep(ds) if kind == "sweep" else plot_run(ds)
+        except (KeyError, IndexError, ValueError, TypeError, AttributeError) as err:
+            plt.close("all")
+            raise _damaged(args.file, kind, err) from None
         fig.savefig(out, dpi=130)
     plt.close(fig)
     print(f"wrote {out}")
@@ -349,7 +492,11 @@ def cmd_plot(args) -> int:
 
 def cmd_info(args) -> int:
     ds, kind = _read_run(args.file)
-    print(info_text(ds, args.file))
+    try:
+        text = info_text(ds, args.file)
+    except (KeyError, IndexError, ValueError, TypeError, AttributeError) as err:
+        raise _damaged(args.file, kind, err) from None
+    print(text)
     return 0
 
 
@@ -462,7 +609,7 @@ def cmd_sweep(args) -> int:
         import dataclasses
 
         sweep = dataclasses.replace(sweep, scene=sweep.scene.replace(n=args.n))
-    out = _check_output(args.output or sweep.default_output(), inputs=(args.sweep,))
+    out = _check_output(args.output or sweep.default_output(), inputs=(args.sweep,), overwrite=args.overwrite)
     scheduler = "serial" if args.serial else args.scheduler
     if scheduler not in (None, "serial") and not dask_available():
         raise ValueError(f"--scheduler {scheduler} needs dask.distributed, which is not installed "

@@ -249,7 +249,9 @@ class _Run:
         self.config = None
         if loaded is not None:
             meta, arrays = loaded
-            pop = _population_from(params, meta, arrays)
+            with ckpt.guard(resume):  # every array is checked before any kernel sees it
+                ckpt.check_run_arrays(arrays, n=int(meta["config"]["n"]), n_stages=len(path.stages))
+                pop = _population_from(params, meta, arrays)
             if population is not None and not all(np.array_equal(getattr(population, a), getattr(pop, a))
                                                   for a in ("r", "R", "u", "cos_phi", "sin_phi")):
                 raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} holds another population than the "
@@ -308,7 +310,13 @@ class _Run:
             self.take_snapshot(0)
 
     def _restore(self, meta, arrays, resume):
-        pop = self.pop
+        size = int(meta["steps_recorded"])
+        with ckpt.guard(resume):
+            for name, var in self.variables.items():
+                a = ckpt.require(arrays, f"rec_{name}", finite=var.dtype.startswith("f"), path=os.fspath(resume))
+                if a.shape[:1] != (size,) or a.dtype != np.dtype(var.dtype):
+                    raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r}: array rec_{name} has shape "
+                                               f"{a.shape} and dtype {a.dtype}, expected {size} rows of {var.dtype}")
         try:
             self.attrs = dict(meta["attrs"])
             self.wall_before = float(meta.get("wall_time_s", 0.0))
@@ -344,7 +352,7 @@ class _Run:
                 prefix = f"snap{i}_"
                 self.rec.add_snapshot(int(step), {key[len(prefix):]: v for key, v in arrays.items()
                                                   if key.startswith(prefix)})
-        except (KeyError, IndexError, ValueError) as err:
+        except (KeyError, IndexError, ValueError, TypeError, OverflowError) as err:
             raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} is incomplete or damaged ({err})") from err
         self.resumed_from = (os.fspath(resume), self.rec.size - 1)
 
@@ -494,6 +502,7 @@ class _Run:
                                  if free.any() else 0.0)
                     pos.started = True
                 ramped = _ramped(free, pos.start_stress, end)  # stage constant
+                done_in_stage = rec.count("stage", i_stage)  # bounded: at most stage.budget increments
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
                            and self.pop.n <= SERIAL_CHUNKS * CHUNK and progress is None)
@@ -504,8 +513,15 @@ class _Run:
                         consistent = False
                         if self.prescribed_batch(stage, i_stage, end, nominal, smallest, checkpoint_every):
                             ds = pos.ds
+                            done_in_stage = rec.count("stage", i_stage)
                         consistent = True
                     s = pos.s
+                    if done_in_stage >= stage.budget:
+                        failure = ConvergenceError(
+                            f"stage {i_stage} ({stage.name or 'unnamed'}) took {done_in_stage} increments, its budget "
+                            f"({stage.budget} = 4 x its nominal count + 64), and stopped at {s:.4g} of the stage: "
+                            "its increments stayed too small (raise max_fraction or increments)")
+                        raise failure
                     if max_wall_time is not None and time.perf_counter() - t0 > max_wall_time:
                         failure = WallTimeExceededError(
                             f"wall-time limit max_wall_time = {max_wall_time:g} s exceeded: stage {i_stage} "
@@ -550,6 +566,7 @@ class _Run:
                                        self.law.history.events: c.events, "transitions": c.transitions}
                     if free.any():
                         pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, ramped))
+                    done_in_stage += 1
                     _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
                             residual=result.residual, cutbacks=cuts, **self.energy,
                             **self.domain_flags(rec.size, ev.delta, ev.stress))

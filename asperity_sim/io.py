@@ -1,7 +1,9 @@
 """Writing and reading run files (netCDF4).  With the recorder, the only module that writes files.
 
 Files are written atomically: to a temporary file in the target folder, then renamed,
-so a crash never leaves a truncated file under the final name.
+so a crash never leaves a truncated file under the final name.  The temporary is named
+``.<name>.<pid>.<random>.tmp``; a failed write removes it, and the next write of the same file
+removes those of killed processes (:func:`asperity_sim.checkpoint.remove_stale_temporaries`).
 """
 
 from __future__ import annotations
@@ -20,7 +22,10 @@ def write_netcdf(ds: xr.Dataset, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    from .checkpoint import remove_stale_temporaries
+
+    remove_stale_temporaries(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)

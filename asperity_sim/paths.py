@@ -4,10 +4,19 @@ Owns the description of a loading programme: a path is a sequence of stages; in 
 stage every component k = 1, 2, 3 is either displacement controlled (Delta_k goes
 linearly to a target [m]) or stress controlled (sigma_k goes linearly to a target
 [Pa]) from its value at the start of the stage, over a number of increments.
+
+Bounded work (issue 24, item 4): a stage is refused up front when it would make the driver's
+adaptive loop unbounded.  The largest increment of an adaptive stage is ``max_fraction`` of
+the stage, so a stage takes at least 1/max_fraction increments: ``max_fraction`` must be at
+least :data:`MIN_FRACTION` (1e-6, i.e. at most a million increments at full size; 1e-12 made
+a stage that never ended and grew memory).  :attr:`Stage.budget` is the most converged
+increments a stage may take, cut-backs and shrinking included (:data:`BUDGET_FACTOR` times
+its nominal count, plus :data:`BUDGET_SLACK`); the driver stops a stage that exceeds it.
 """
 
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
 
@@ -15,7 +24,15 @@ import numpy as np
 
 from .params import check_real
 
-__all__ = ["Stage", "LoadPath", "three_step", "constant_normal_shear", "DISPLACEMENT", "STRESS"]
+__all__ = ["Stage", "LoadPath", "three_step", "constant_normal_shear", "DISPLACEMENT", "STRESS", "MIN_FRACTION",
+           "BUDGET_FACTOR", "BUDGET_SLACK"]
+
+MIN_FRACTION = 1e-6
+"""Smallest ``max_fraction`` of a stage: at most 1e6 increments of the largest size."""
+BUDGET_FACTOR = 4
+"""A stage may take this many times its nominal increment count (see :attr:`Stage.budget`) ..."""
+BUDGET_SLACK = 64
+"""... plus this many, for the cut-backs of a short stage."""
 
 DISPLACEMENT = "displacement"
 STRESS = "stress"
@@ -49,7 +66,8 @@ class Stage:
     increments : int, number of equal increments (the driver halves one that fails)
     adaptive : bool, let the increment grow after easy convergence, up to
         ``max_fraction`` of the stage, and shrink after hard convergence
-    max_fraction : float in (0, 1], largest increment as a fraction of the stage (adaptive only)
+    max_fraction : float in [1e-6, 1], largest increment as a fraction of the stage (adaptive
+        only; :data:`MIN_FRACTION` bounds the number of increments, see the module docstring)
     name : str, label recorded in the output
     """
 
@@ -79,10 +97,32 @@ class Stage:
         object.__setattr__(self, "increments", _check_int("increments", self.increments, 1, 10**7))
         if not isinstance(self.adaptive, bool):
             raise ValueError(f"adaptive = {self.adaptive!r} must be True or False")
-        object.__setattr__(self, "max_fraction",
-                           check_real("max_fraction", self.max_fraction, 0.0, 1.0, lo_open=True))
+        try:
+            mf = check_real("max_fraction", self.max_fraction, MIN_FRACTION, 1.0)
+        except ValueError as err:
+            raise ValueError(f"{err}; a stage takes at least 1/max_fraction increments, so a smaller fraction "
+                             "would make an adaptive stage practically unbounded (issue 24)") from None
+        object.__setattr__(self, "max_fraction", mf)
         if not isinstance(self.name, str):
             raise ValueError(f"name = {self.name!r} must be a string")
+
+    @property
+    def nominal_increments(self) -> int:
+        """Increments the stage takes when nothing is cut back: ``increments``, or for an adaptive
+        stage at least 1/max_fraction (its increments never grow beyond max_fraction)."""
+        if self.adaptive:
+            return max(self.increments, math.ceil(1.0 / self.max_fraction - 1e-9))
+        return self.increments
+
+    @property
+    def budget(self) -> int:
+        """Most converged increments this stage may take before the driver must stop it.
+
+        ``BUDGET_FACTOR * nominal_increments + BUDGET_SLACK`` (4 n + 64): room for the cut-backs
+        of a hard stretch (each halving costs one more increment, later ones grow back), never
+        an unbounded loop. At most 4e7 + 64 (``increments`` <= 1e7, ``max_fraction`` >= 1e-6).
+        """
+        return BUDGET_FACTOR * self.nominal_increments + BUDGET_SLACK
 
     @property
     def stress_controlled(self) -> np.ndarray:

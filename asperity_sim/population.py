@@ -468,6 +468,56 @@ def reach(r, R_min, r_o, k_e, beta, d1, d2, d3, theta_max):
     return np.searchsorted(r, r_max, side="right"), theta
 
 
+UNIT_TOL = 1e-12  # largest |cos² phi + sin² phi - 1| accepted in a Population
+
+
+@numba.njit(cache=True)
+def _all_valid(r, R, u, cos_phi, sin_phi):
+    """True if every asperity keeps the invariants of :func:`_first_invalid`; branch-free (vectorises)."""
+    half_pi = 0.5 * math.pi
+    ok = True
+    prev = 0.0
+    for i in range(r.shape[0]):
+        ri = r[i]
+        c = cos_phi[i]
+        s = sin_phi[i]
+        ok &= ((ri >= prev) & (ri < math.inf) & (R[i] > 0.0) & (R[i] < math.inf) & (u[i] >= 0.0)
+               & (u[i] <= half_pi) & (abs(c * c + s * s - 1.0) <= UNIT_TOL))
+        prev = ri
+    return ok
+
+
+@numba.njit(cache=True)
+def _first_invalid(r, R, u, cos_phi, sin_phi):
+    """(code, i): the first asperity i that breaks an invariant the kernels rely on, code 0 if none.
+
+    Codes: 1 r not finite or < 0; 2 r[i] < r[i-1] (heights must be sorted: the kernels stop at
+    the first height out of reach); 3 R not finite or <= 0; 4 u outside [0, pi/2] (or NaN);
+    5 cos phi or sin phi not finite, or |cos² + sin² - 1| > UNIT_TOL.
+    """
+    half_pi = 0.5 * math.pi
+    prev = 0.0
+    for i in range(r.shape[0]):
+        ri = r[i]
+        if not (0.0 <= ri < math.inf):
+            return 1, i
+        if ri < prev:
+            return 2, i
+        prev = ri
+        if not (0.0 < R[i] < math.inf):
+            return 3, i
+        if not (0.0 <= u[i] <= half_pi):
+            return 4, i
+        c = cos_phi[i]
+        s = sin_phi[i]
+        if not abs(c * c + s * s - 1.0) <= UNIT_TOL:
+            return 5, i
+    return 0, -1
+
+
+_ARRAYS = ("r", "R", "u", "cos_phi", "sin_phi")
+
+
 @dataclass(frozen=True, eq=False)
 class Population:
     """n sampled asperities as struct-of-arrays, sorted by height r.
@@ -495,6 +545,63 @@ class Population:
     seed: int | None
     sampler: str
     r_band: float = math.inf
+
+    def __post_init__(self):
+        """Check every invariant the kernels rely on (SPEC §2–§3); O(n), one pass, no copies.
+
+        A Population built directly (from a checkpoint, or by hand) with unsorted heights, NaN,
+        out-of-range values or arrays of unequal length would make the kernels skip asperities,
+        read out of bounds or return garbage; it is refused with a ``ValueError`` naming the array,
+        the first bad element and the valid range.
+        """
+        if not isinstance(self.params, InterfaceParams):
+            raise ValueError(f"params = {self.params!r} is not an InterfaceParams")
+        n = None
+        for name in _ARRAYS:
+            a = getattr(self, name)
+            if not isinstance(a, np.ndarray):
+                raise ValueError(f"Population.{name} is a {type(a).__name__}, not a numpy array "
+                                 "(valid: 1-D float64 ndarray)")
+            if a.dtype != np.float64 or a.ndim != 1:
+                raise ValueError(f"Population.{name} has dtype {a.dtype} and shape {a.shape} "
+                                 "(valid: 1-D float64 array)")
+            if n is None:
+                n = a.shape[0]
+                if n < 1:
+                    raise ValueError("Population.r is empty (valid range: n >= 1 asperities)")
+            elif a.shape[0] != n:
+                raise ValueError(f"Population.{name} has length {a.shape[0]}, r has length {n} "
+                                 "(valid: all five arrays of equal length)")
+        if not _all_valid(self.r, self.R, self.u, self.cos_phi, self.sin_phi):  # the fast pass; then find why
+            code, i = _first_invalid(self.r, self.R, self.u, self.cos_phi, self.sin_phi)
+            raise ValueError(self._invalid_text(code, i))
+        w = self.weight
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (0.0 < w < math.inf):
+            raise ValueError(f"Population.weight = {w!r} is not valid (valid range: finite and > 0)")
+        if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral)
+                                      or self.seed < 0):
+            raise ValueError(f"Population.seed = {self.seed!r} is not valid (valid range: None or integer >= 0)")
+        if not isinstance(self.sampler, str):
+            raise ValueError(f"Population.sampler = {self.sampler!r} is not a string")
+        rb = self.r_band
+        if isinstance(rb, bool) or not isinstance(rb, numbers.Real) or not rb > 0.0:
+            raise ValueError(f"Population.r_band = {rb!r} is not valid (valid range: > 0 [m], inf for no band)")
+
+    def _invalid_text(self, code, i):
+        if code == 0:  # _all_valid and _first_invalid disagree: cannot happen, but never pass silently
+            return "Population arrays failed the validity check (r, R, u, cos_phi, sin_phi)"
+        if code == 1:
+            return f"Population.r[{i}] = {float(self.r[i])!r} is not valid (valid range: finite and >= 0 [m])"
+        if code == 2:
+            return (f"Population.r is not sorted: r[{i}] = {float(self.r[i])!r} < r[{i - 1}] = {float(self.r[i - 1])!r} "
+                    "(valid: heights sorted non-decreasing [m]; Population.from_arrays sorts them)")
+        if code == 3:
+            return f"Population.R[{i}] = {float(self.R[i])!r} is not valid (valid range: finite and > 0 [m])"
+        if code == 4:
+            return f"Population.u[{i}] = {float(self.u[i])!r} is not valid (valid range: [0, pi/2] [rad])"
+        c, s = float(self.cos_phi[i]), float(self.sin_phi[i])
+        return (f"Population.cos_phi[{i}] = {c!r}, sin_phi[{i}] = {s!r} are not the cosine and sine of one angle "
+                f"(valid: finite with |cos² + sin² - 1| <= {UNIT_TOL:g})")
 
     @classmethod
     def sample(cls, params: InterfaceParams, n: int, seed: int | None = 0, sampler: str = "random",

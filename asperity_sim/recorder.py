@@ -61,6 +61,10 @@ class Recorder:
                 grown[: self.size] = a[: self.size]
                 self._buf[name] = grown
 
+    def count(self, name, value) -> int:
+        """Recorded steps whose ``name`` equals ``value`` (e.g. the increments of a stage)."""
+        return int(np.count_nonzero(self._buf[name][: self.size] == value))
+
     def add_snapshot(self, step, arrays):
         self.snapshots.append((step, arrays))
 

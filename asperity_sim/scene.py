@@ -21,7 +21,8 @@ allowed.  The layout (``scenarios/*.toml`` are complete examples)::
     policy = "follow"                        # follow, birth
     k = 16                                   # tangential springs per contact (law mdr)
     [output]                                 # optional
-    file = "run.nc"                          # relative to the current directory; default <scene>.nc
+    file = "run.nc"                          # inside the scene's folder (no absolute path, no '..');
+                                             # default <scene>.nc in the current directory
     snapshots = "stage_ends"                 # or a list of step numbers
     [path]
     name = "constant_normal_shear"           # optional label
@@ -263,11 +264,14 @@ def load_scene(path) -> Scene:
     return scene_from_dict(read_toml(path), source=str(path))
 
 
-def scene_from_dict(data: dict, source: str = "<scene>", name: str | None = None) -> Scene:
+def scene_from_dict(data: dict, source: str = "<scene>", name: str | None = None,
+                    folder: str | Path | None = None) -> Scene:
     """A checked :class:`Scene` from a parsed TOML document.
 
     source : where the document came from (starts every error message)
     name : label of the path when ``[path] name`` is not given (default: the file name of source)
+    folder : the scene's folder, where ``[output] file`` is resolved and must stay (default: the
+        folder of ``source`` when it is a file, else the current directory)
     """
     where = f"{source}: "
     if "sweep" in data:
@@ -276,7 +280,9 @@ def scene_from_dict(data: dict, source: str = "<scene>", name: str | None = None
     title = _string(data.get("title", ""), f"{where}title")
     params, preset = parameters_from_table(_table(data, "parameters", where, required=True), f"{where}[parameters] ")
     run = _run_settings(_table(data, "run", where), f"{where}[run] ")
-    output, snapshots = _output(_table(data, "output", where), f"{where}[output] ")
+    if folder is None:
+        folder = Path(source).parent if source != "<scene>" and Path(source).is_file() else Path(".")
+    output, snapshots = _output(_table(data, "output", where), f"{where}[output] ", Path(folder))
     if name is None:
         name = Path(source).stem if source != "<scene>" else "scene"
     path = path_from_table(_table(data, "path", where, required=True), f"{where}[path] ", default_name=name)
@@ -325,19 +331,40 @@ def _run_settings(table: dict, where: str) -> dict:
     return out
 
 
-def _output(table: dict, where: str):
+def _output(table: dict, where: str, folder: Path = Path(".")):
     check_keys(table, _OUTPUT, where)
     output = table.get("file")
     if output is not None:
         output = Path(_string(output, f"{where}file"))
         if output.suffix not in (".nc", ".nc4"):
             raise SceneError(f"{where}file = {str(output)!r} must end in .nc (a netCDF file)")
+        output = contained_output(output, folder, f"{where}file")
     snapshots = table.get("snapshots")
     if snapshots is not None and snapshots != "stage_ends":
         if not isinstance(snapshots, list):
             raise SceneError(f"{where}snapshots = {snapshots!r} must be \"stage_ends\" or a list of step numbers")
         snapshots = tuple(_int(s, f"{where}snapshots step", 0) for s in snapshots)
     return output, snapshots
+
+
+def contained_output(output: Path, folder: Path, name: str = "[output] file") -> Path:
+    """``folder / output`` if it stays inside ``folder``; else :class:`SceneError` (issue 24, item 5).
+
+    A scene file may name its output only inside its own folder: no absolute path, no ``..``
+    and no symbolic link leading out of it.  Anywhere else is the user's choice on the command
+    line (``-o``), not the file's.
+    """
+    text = str(output)
+    if output.is_absolute() or output.anchor or any(part == ".." for part in output.parts) or not output.name:
+        raise SceneError(f"{name} = {text!r} must be a path inside the scene's folder {str(folder)!r} (a relative "
+                         "path without '..'); write elsewhere with -o")
+    target = folder / output
+    try:
+        target.resolve().relative_to(folder.resolve())
+    except ValueError:
+        raise SceneError(f"{name} = {text!r} leads out of the scene's folder {str(folder)!r} (through a symbolic "
+                         "link); write elsewhere with -o") from None
+    return target
 
 
 def path_from_table(table: dict, where: str = "", default_name: str = "scene") -> paths.LoadPath:

@@ -303,7 +303,7 @@ def load_sweep(path) -> Sweep:
         merged.pop("output", None)
         if "output" in data:
             merged["output"] = data["output"]
-        scene = scene_from_dict(merged, source=f"{path} (with {base_path})", name=base_path.stem)
+        scene = scene_from_dict(merged, source=f"{path} (with {base_path})", name=base_path.stem, folder=path.parent)
     else:
         scene = scene_from_dict({k: v for k, v in data.items() if k != "sweep"}, source=str(path))
     seeds = _seeds(table, scene.seed, f"{where}[sweep] ")

@@ -179,3 +179,275 @@ def test_console_entry_point_in_a_subprocess(tmp_path):
     assert bad.returncode == 1 and bad.stdout == ""
     assert bad.stderr.strip() == f"asperity-sim: error: {scene}: [run] n = -400 is out of range " \
                                  "(valid range: integer in [1, 2147483647])"
+
+
+# --------------------------------------------------------------------------- issue 24, item 5
+
+VOLATILE = {"wall_time_s", "history", "date_created", "scene_file", "scene"}
+
+
+def _same_data(a, b, skip=()):
+    assert set(a.variables) == set(b.variables)
+    for name in a.variables:
+        assert np.array_equal(a[name].values, b[name].values, equal_nan=a[name].dtype.kind == "f"), name
+    for key in set(a.attrs) - VOLATILE - set(skip):
+        assert np.array_equal(np.asarray(a.attrs[key]), np.asarray(b.attrs[key])), key
+
+
+def test_version(capsys):
+    import asperity_sim
+
+    assert cli.main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"asperity-sim {asperity_sim.__version__}"
+
+
+@pytest.mark.parametrize("file, word", [("../escape.nc", "inside the scene's folder"),
+                                        ("sub/../../escape.nc", "without '..'"),
+                                        ("/tmp/absolute.nc", "inside the scene's folder")])
+def test_scene_output_may_not_leave_the_scene_folder(tmp_path, monkeypatch, capsys, file, word):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    scene = folder / "small.toml"
+    scene.write_text(SMALL + f'[output]\nfile = "{file}"\n')
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["run", str(scene), "--quiet"]) == cli.EXIT_INPUT
+    line = _one_error_line(capsys.readouterr().err, 1)
+    assert word in line and repr(file) in line and str(scene) in line and "-o" in line
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["scenes", "small.toml"]
+
+
+def test_scene_output_through_a_symlink_out_of_the_folder_is_refused(tmp_path, capsys):
+    folder = tmp_path / "scenes"
+    (tmp_path / "elsewhere").mkdir()
+    folder.mkdir()
+    (folder / "link").symlink_to(tmp_path / "elsewhere")
+    scene = folder / "small.toml"
+    scene.write_text(SMALL + '[output]\nfile = "link/run.nc"\n')
+    assert cli.main(["run", str(scene), "--quiet"]) == cli.EXIT_INPUT
+    assert "symbolic link" in _one_error_line(capsys.readouterr().err, 1)
+    assert not list((tmp_path / "elsewhere").iterdir())
+
+
+def test_scene_output_is_resolved_in_the_scene_folder_and_o_goes_anywhere(tmp_path, monkeypatch, capsys):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    scene = folder / "small.toml"
+    scene.write_text(SMALL + '[output]\nfile = "results/run.nc"\n')
+    monkeypatch.chdir(tmp_path)  # not the scene's folder
+    assert cli.main(["run", str(scene), "--quiet"]) == 0
+    assert (folder / "results" / "run.nc").exists() and not (tmp_path / "results").exists()
+    assert cli.main(["run", str(scene), "--quiet", "-o", str(tmp_path / "other" / "x.nc")]) == 0
+    assert (tmp_path / "other" / "x.nc").exists()
+
+
+def test_existing_outputs_are_not_overwritten_without_the_flag(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out = tmp_path / "run.nc"
+    assert cli.main(["run", str(scene), "-o", str(out)]) == 0
+    first = out.read_bytes()
+    capsys.readouterr()
+    assert cli.main(["run", str(scene), "-o", str(out), "--seed", "9"]) == cli.EXIT_INPUT
+    line = _one_error_line(capsys.readouterr().err, 1)
+    assert f"output '{out}' exists; give --overwrite" in line
+    assert out.read_bytes() == first
+    assert cli.main(["run", str(scene), "-o", str(out), "--seed", "9", "--overwrite"]) == 0
+    assert read_netcdf(out).attrs["seed"] == 9
+    fig = tmp_path / "run.png"
+    assert cli.main(["plot", str(out)]) == 0
+    capsys.readouterr()
+    assert cli.main(["plot", str(out)]) == cli.EXIT_INPUT
+    assert "figure" in _one_error_line(capsys.readouterr().err, 1)
+    assert cli.main(["plot", str(out), "--overwrite"]) == 0 and fig.exists()
+
+
+@pytest.mark.parametrize("target, word", [("{tmp}", "is a folder"), ("{tmp}/afile/out.nc", "is not a folder"),
+                                          ("{tmp}/small.toml", "must end in .nc")])
+def test_output_paths_checked_before_any_work(tmp_path, capsys, target, word):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    (tmp_path / "afile").write_text("x")
+    target = target.format(tmp=tmp_path)
+    if target == str(tmp_path):
+        target = str(tmp_path / "folder.nc")
+        (tmp_path / "folder.nc").mkdir()
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert cli.main(["run", str(scene), "-o", target]) == cli.EXIT_INPUT
+    assert word in _one_error_line(capsys.readouterr().err, 1)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+def _foreign(path):
+    import xarray as xr
+
+    xr.Dataset({"stress": (("step", "axis"), np.zeros((2, 3))),
+                "displacement": (("step", "axis"), np.zeros((2, 3)))},
+               coords={"axis": [1, 2, 3]}).to_netcdf(path, engine="netcdf4")
+    return path
+
+
+def test_info_and_plot_on_damaged_or_foreign_files_exit_1_with_one_line(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    good = tmp_path / "good.nc"
+    assert cli.main(["run", str(scene), "-o", str(good)]) == 0
+    raw = good.read_bytes()
+    cut = tmp_path / "cut.nc"
+    cut.write_bytes(raw[: len(raw) // 2])
+    garbage = tmp_path / "garbage.nc"
+    garbage.write_bytes(raw[:8] + bytes(range(256)) * 8)
+    foreign = _foreign(tmp_path / "foreign.nc")
+    no_stage = tmp_path / "no_stage.nc"
+    read_netcdf(good).drop_vars(["stage", "n_slip"]).to_netcdf(no_stage, engine="netcdf4")
+    cases = {cut: "not a netCDF file, or a damaged one", garbage: "not a netCDF file, or a damaged one",
+             foreign: "missing stress_stderr, displacement_stderr, stage, iterations",
+             no_stage: "missing stage, n_slip"}
+    for path, word in cases.items():
+        for cmd in (["info", str(path)], ["plot", str(path), "-o", str(tmp_path / "f.png")]):
+            capsys.readouterr()
+            assert cli.main(cmd) == cli.EXIT_INPUT, cmd
+            line = _one_error_line(capsys.readouterr().err, 1)
+            assert str(path) in line and word in line and "KeyError" not in line, line
+    assert not (tmp_path / "f.png").exists()
+
+
+def _stopped_checkpoint(scene_path, ck, step):
+    """The checkpoint a run of the scene leaves when it dies after ``step`` (killed: nothing else written)."""
+    from asperity_sim.scene import load_scene
+
+    class Stop(Exception):
+        pass
+
+    def progress(stage, n_stages, fraction, s, iterations):
+        if s == step:
+            raise Stop
+
+    with pytest.raises(Stop):
+        load_scene(scene_path).simulate(checkpoint=ck, checkpoint_every=1, progress=progress)
+
+
+def test_run_checkpoint_then_resume_with_or_without_the_scene_gives_the_same_bits(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    full = tmp_path / "full.nc"
+    ck_full = tmp_path / "full.npz"
+    assert cli.main(["run", str(scene), "-o", str(full), "--checkpoint", str(ck_full), "--checkpoint-every", "2"]) == 0
+    assert ck_full.exists()
+    ck = tmp_path / "killed.npz"
+    _stopped_checkpoint(scene, ck, 4)
+    a, b = tmp_path / "a.nc", tmp_path / "b.nc"
+    saved = ck.read_bytes()
+    assert cli.main(["run", str(scene), "--resume", str(ck), "-o", str(a)]) == 0
+    _same_data(read_netcdf(full), read_netcdf(a))
+    assert "resumed from checkpoint" in read_netcdf(a).attrs["history"]
+    ck.write_bytes(saved)
+    capsys.readouterr()
+    assert cli.main(["run", "--resume", str(ck), "-o", str(b)]) == 0
+    assert f"wrote {b}: resumed from {ck}" in capsys.readouterr().out
+    _same_data(read_netcdf(full), read_netcdf(b), skip=("title",))  # the scene's title is in the scene only
+
+
+@pytest.mark.parametrize("argv, code, word", [
+    (["run", "{scene}", "--checkpoint", "{tmp}/ck.npz", "-o", "{tmp}/o.nc"], 1, "exists (a killed run?); give --resume"),
+    (["run", "{scene}", "--resume", "{tmp}/none.npz", "-o", "{tmp}/o.nc"], 1, "no such file (nothing to resume)"),
+    (["run", "{scene}", "--resume", "{tmp}/bad.npz", "-o", "{tmp}/o.nc"], 1, "is not a readable asperity_sim checkpoint"),
+    (["run", "--resume", "{tmp}/bad.npz", "-o", "{tmp}/o.nc"], 1, "is not a readable asperity_sim checkpoint"),
+    (["run", "{scene}", "--checkpoint", "{tmp}/ck.txt"], 1, "must end in .npz"),
+    (["run", "{scene}", "--checkpoint-every", "2"], 2, "--checkpoint-every needs --checkpoint"),
+    (["run", "{scene}", "--checkpoint", "{tmp}/x.npz", "--checkpoint-every", "0"], 2, "out of range"),
+    (["run"], 2, "SCENE.toml (or --resume CK.npz)"),
+    (["run", "--resume", "{tmp}/bad.npz", "--n", "5"], 2, "--n and --seed need the scene"),
+])
+def test_checkpoint_options_errors(tmp_path, capsys, argv, code, word):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    (tmp_path / "ck.npz").write_bytes(b"an older checkpoint")
+    (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04 damaged")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert cli.main([a.format(scene=scene, tmp=tmp_path) for a in argv]) == code
+    line = _one_error_line(capsys.readouterr().err, code)
+    assert word in line, line
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_resume_of_another_runs_checkpoint_is_refused(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    ck = tmp_path / "k.npz"
+    _stopped_checkpoint(scene, ck, 3)
+    assert cli.main(["run", str(scene), "--resume", str(ck), "--seed", "99", "-o", str(tmp_path / "o.nc")]) == 1
+    line = _one_error_line(capsys.readouterr().err, 1)
+    assert "belongs to another run" in line and "seed" in line
+
+
+KILLED_CLI = """
+import sys, time
+from asperity_sim import cli, driver
+orig = driver._Run.save_checkpoint
+def slow(self, *a, **k):
+    orig(self, *a, **k)
+    time.sleep(0.3)
+driver._Run.save_checkpoint = slow
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow
+def test_sigkill_of_asperity_sim_run_then_resume_gives_the_same_bits(tmp_path):
+    import signal
+    import time
+
+    from asperity_sim import __version__
+    from asperity_sim import checkpoint as ckpt
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.replace("increments = 3", "increments = 8"))
+    ck, out, full = tmp_path / "k.npz", tmp_path / "k.nc", tmp_path / "full.nc"
+    child = subprocess.Popen([sys.executable, "-c", KILLED_CLI, "run", str(scene), "-o", str(out), "--checkpoint",
+                              str(ck), "--checkpoint-every", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        steps = 0
+        while time.monotonic() < deadline and child.poll() is None and steps < 5:
+            if ck.exists():
+                steps = ckpt.load(ck, __version__)[0]["steps_recorded"]
+            time.sleep(0.05)
+        assert child.poll() is None, child.communicate()
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait(30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert not out.exists()
+    assert cli.main(["run", str(scene), "--resume", str(ck), "-o", str(out)]) == 0
+    assert cli.main(["run", str(scene), "-o", str(full)]) == 0
+    _same_data(read_netcdf(full), read_netcdf(out))
+
+
+def test_ctrl_c_keeps_what_converged_with_the_scene_provenance(tmp_path, monkeypatch, capsys):
+    from asperity_sim.scene import Scene
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out, ck = tmp_path / "run.nc", tmp_path / "run.npz"
+    real = Scene.simulate
+
+    def interrupted(self, **kw):
+        def progress(stage, n_stages, fraction, step, iterations):
+            if step == 4:
+                raise KeyboardInterrupt
+        return real(self, **{**kw, "progress": progress})
+
+    monkeypatch.setattr(Scene, "simulate", interrupted)
+    assert cli.main(["run", str(scene), "-o", str(out), "--checkpoint", str(ck), "--checkpoint-every", "1"]) == 130
+    line = _one_error_line(capsys.readouterr().err, 130)
+    assert f"the converged increments are in {out}; resume with --resume {ck}" in line
+    ds = read_netcdf(out)
+    assert ds.attrs["status"].startswith("interrupted") and ds.sizes["step"] >= 4
+    assert ds.attrs["scene_file"] == str(scene.resolve()) and ds.attrs["title"] == "small test scene"
+    assert "interrupted (Ctrl-C)" in ds.attrs["history"]
+    monkeypatch.undo()
+    assert cli.main(["run", str(scene), "--resume", str(ck), "-o", str(out), "--overwrite"]) == 0
+    full = tmp_path / "full.nc"
+    assert cli.main(["run", str(scene), "-o", str(full)]) == 0
+    _same_data(read_netcdf(full), read_netcdf(out))

@@ -244,3 +244,37 @@ def test_paper_paths_reject_bad_increments(bad):
         paths.constant_normal_shear(1e6, 1e-6, increments=bad)
     with pytest.raises(ValueError, match="increments"):
         paths.constant_normal_shear(1e6, 1e-6, normal_increments=bad)
+
+
+# --------------------------------------------------------------------------- bounded work (issue 24, item 4)
+
+@pytest.mark.parametrize("fraction", [1e-12, 9.99e-7, 1e-300, 5e-324])
+def test_tiny_max_fraction_is_refused_up_front_with_its_range(fraction):
+    """max_fraction = 1e-12 made an adaptive stage that never ended and grew memory."""
+    with pytest.raises(ValueError) as exc:
+        Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 10, adaptive=True, max_fraction=fraction)
+    text = str(exc.value)
+    assert f"max_fraction = {float(fraction)!r}" in text and "valid range: [1e-06, 1]" in text and "unbounded" in text
+
+
+def test_smallest_allowed_fraction_and_the_budget():
+    from asperity_sim.paths import BUDGET_FACTOR, BUDGET_SLACK, MIN_FRACTION
+
+    st = Stage(("d", "d", "d"), (1e-6, 0.0, 0.0), 10, adaptive=True, max_fraction=MIN_FRACTION)
+    assert st.nominal_increments == 10**6
+    assert st.budget == BUDGET_FACTOR * 10**6 + BUDGET_SLACK
+    assert Stage(("d", "d", "d"), (1e-6, 0, 0), 10, adaptive=True, max_fraction=0.3).nominal_increments == 10
+    assert Stage(("d", "d", "d"), (1e-6, 0, 0), 10, adaptive=True, max_fraction=0.01).nominal_increments == 100
+    assert Stage(("d", "d", "d"), (1e-6, 0, 0), 7, max_fraction=0.01).budget == 4 * 7 + 64  # not adaptive
+    biggest = Stage(("d", "d", "d"), (1e-6, 0, 0), 10**7, adaptive=True, max_fraction=MIN_FRACTION)
+    assert biggest.budget == 4 * 10**7 + 64
+
+
+def test_tiny_fraction_in_a_scene_file_is_refused():
+    from asperity_sim.scene import SceneError, scene_from_dict
+
+    data = {"parameters": {"preset": "S1"},
+            "path": {"stages": [{"increments": 3, "Delta_1": "2 um", "Delta_2": "0 um", "Delta_3": "0 um",
+                                 "adaptive": True, "max_fraction": 1e-12}]}}
+    with pytest.raises(SceneError, match=r"max_fraction = 1e-12 .*valid range: \[1e-06, 1\]"):
+        scene_from_dict(data, source="t.toml")

@@ -554,3 +554,95 @@ def test_normal_quantile_matches_scipy_ndtri():
     assert np.array_equal(np.isinf(got), np.isinf(exact)) and np.array_equal(got[np.isinf(got)], exact[np.isinf(exact)])
     fin = np.isfinite(exact)
     assert np.all(np.abs(got[fin] - exact[fin]) <= 32 * np.spacing(np.maximum(np.abs(exact[fin]), 1e-300)))
+
+
+# --------------------------------------------------------------------------- Population built directly (issue 24)
+
+def _direct(**changes):
+    """A valid Population built with the dataclass constructor, then the fields in ``changes`` replaced."""
+    pop = Population.sample(ISO, 64, seed=5)
+    fields = dict(params=pop.params, r=pop.r, R=pop.R, u=pop.u, cos_phi=pop.cos_phi, sin_phi=pop.sin_phi,
+                  weight=pop.weight, seed=pop.seed, sampler=pop.sampler)
+    fields.update(changes)
+    return Population(**fields)
+
+
+def test_direct_construction_of_a_sampled_population_is_accepted():
+    pop = _direct()
+    ref = Population.sample(ISO, 64, seed=5)
+    assert np.array_equal(pop.r, ref.r)
+    assert pop.evaluate(np.array([3e-6, 0.0, 0.0])).stress[0] > 0
+
+
+def _swapped(a, i, j):
+    a = a.copy()
+    a[i], a[j] = a[j], a[i]
+    return a
+
+
+def _with(a, i, value):
+    a = a.copy()
+    a[i] = value
+    return a
+
+
+BASE = Population.sample(ISO, 64, seed=5)
+BAD_DIRECT = [
+    ("r", dict(r=_swapped(BASE.r, 0, 63)), r"r is not sorted: r\[1\] = .* < r\[0\]"),
+    ("r", dict(r=_with(BASE.r, 10, np.nan)), r"r\[10\] = nan .*finite and >= 0"),
+    ("r", dict(r=_with(BASE.r, 0, -1e-9)), r"r\[0\] = -1e-09 .*finite and >= 0"),
+    ("r", dict(r=_with(BASE.r, 63, np.inf)), r"r\[63\] = inf"),
+    ("R", dict(R=_with(BASE.R, 3, 0.0)), r"R\[3\] = 0.0 .*finite and > 0"),
+    ("R", dict(R=_with(BASE.R, 3, np.nan)), r"R\[3\] = nan"),
+    ("u", dict(u=_with(BASE.u, 7, 2.0)), r"u\[7\] = 2.0 .*\[0, pi/2\]"),
+    ("u", dict(u=_with(BASE.u, 7, -0.1)), r"u\[7\] = -0.1"),
+    ("phi", dict(cos_phi=_with(BASE.cos_phi, 5, 1.0), sin_phi=_with(BASE.sin_phi, 5, 1.0)),
+     r"cos_phi\[5\] = 1.0, sin_phi\[5\] = 1.0"),
+    ("phi", dict(sin_phi=_with(BASE.sin_phi, 5, np.nan)), r"sin_phi\[5\] = nan"),
+    ("shape", dict(R=BASE.R[:-1]), r"R has length 63, r has length 64"),
+    ("shape", dict(u=BASE.u.reshape(8, 8)), r"u has dtype float64 and shape \(8, 8\)"),
+    ("dtype", dict(r=BASE.r.astype(np.float32)), r"r has dtype float32"),
+    ("dtype", dict(cos_phi=list(BASE.cos_phi)), r"cos_phi is a list"),
+    ("empty", dict(r=np.empty(0), R=np.empty(0), u=np.empty(0), cos_phi=np.empty(0), sin_phi=np.empty(0)),
+     r"r is empty"),
+    ("weight", dict(weight=0.0), r"weight = 0.0 .*finite and > 0"),
+    ("weight", dict(weight=np.nan), r"weight = nan"),
+    ("seed", dict(seed=-1), r"seed = -1"),
+    ("params", dict(params="R1"), r"params = 'R1' is not an InterfaceParams"),
+]
+
+
+@pytest.mark.parametrize("what, changes, message", BAD_DIRECT, ids=[f"{b[0]}-{i}" for i, b in enumerate(BAD_DIRECT)])
+def test_direct_construction_refuses_what_the_kernels_cannot_use(what, changes, message):
+    with pytest.raises(ValueError, match=message):
+        _direct(**changes)
+
+
+def test_unsorted_heights_no_longer_give_zero_stress_silently():
+    """The issue's case: the same asperities, heights reversed, evaluated as if sorted gave sigma = 0."""
+    with pytest.raises(ValueError, match="not sorted"):
+        _direct(r=BASE.r[::-1].copy(), R=BASE.R[::-1].copy(), u=BASE.u[::-1].copy(),
+                cos_phi=BASE.cos_phi[::-1].copy(), sin_phi=BASE.sin_phi[::-1].copy())
+
+
+@pytest.mark.parametrize("sampler", ["random", "sobol"])
+@pytest.mark.parametrize("params", [ISO, presets.R2, ISO.replace(b=0.5, c=0.1, d=-0.2, R_sigma=10e-6)])
+def test_sampled_arrays_pass_the_checks(sampler, params):
+    for n in (1, 1000, 4096, 5000):
+        pop = Population.sample(params, n, seed=2, sampler=sampler)
+        assert pop.n == n  # __post_init__ ran and accepted them
+    pop = Population.sample(params, 2000, seed=2, sampler=sampler, r_max=3 * params.beta * (params.alpha + 1))
+    assert pop.r.max() <= pop.r_band
+
+
+def test_checks_are_cheap_at_a_million_asperities():
+    """One pass over the arrays: measured ~1.1 ms at n = 1e6 (2-core machine, sampling itself ~350 ms)."""
+    import time
+
+    pop = Population.sample(ISO, 10**6, seed=1)
+    best = math.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        pop.__post_init__()
+        best = min(best, time.perf_counter() - t0)
+    assert best < 0.010

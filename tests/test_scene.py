@@ -155,3 +155,23 @@ def test_scale_increments_keeps_proportions():
     path = load_scene(SCENARIOS / "normal_closure_S2.toml").path
     assert [s.increments for s in scale_increments(path, 4).stages] == [1, 1, 4]
     assert [s.increments for s in scale_increments(path, 80).stages] == [20, 20, 80]
+
+
+# --------------------------------------------------------------------------- output inside the scene's folder (issue 24)
+
+@pytest.mark.parametrize("file, word", [("../run.nc", "without '..'"), ("a/../../run.nc", "without '..'"),
+                                        ("/abs/run.nc", "inside the scene's folder")])
+def test_output_file_may_not_leave_the_scene_folder(tmp_path, file, word):
+    src = tmp_path / "s.toml"
+    src.write_text("")
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(_scene(output={"file": file}), source=str(src))
+    assert word in str(err.value) and repr(file) in str(err.value) and str(src) in str(err.value)
+
+
+def test_output_file_is_resolved_in_the_scene_folder(tmp_path):
+    src = tmp_path / "s.toml"
+    src.write_text("")
+    scene = scene_from_dict(_scene(output={"file": "out/run.nc"}), source=str(src))
+    assert scene.output == tmp_path / "out" / "run.nc" and scene.default_output() == scene.output
+    assert scene_from_dict(_scene(output={"file": "run.nc"}), source="t.toml").output == Path("run.nc")

@@ -38,7 +38,8 @@ def paper_core(dn, dst, sqrt_R, E_star, lam, mu):
     sq = fsqrt(dn)
     f_n = C * dn * sq
     k_n = 1.5 * C * sq
-    xs = dst / (lam * mu * dn)
+    slip_len = lam * mu * dn
+    xs = dst / slip_len if slip_len > 0.0 else math.inf  # mu = 0: no stick region
     stick = xs < 1.0
     om = fsqrt(1.0 - xs if stick else 0.0)
     q = (1.0 + om + om * om) / (1.0 + om)
