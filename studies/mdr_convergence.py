@@ -30,7 +30,8 @@ Grid: n = 2^10 ... 2^18 (every power of two, --n-max), k = 2, 4, 8, 16, 32 and k
 replicas 8 up to n = 2^14, 6 at 2^15, 4 at 2^16 and 2^17, 3 at 2^18 (--replicas scales the 8).
 Cheapest (n, k) reaching a relative error e*: the (n, k) of smallest mean wall time whose RMS
 error is <= e* and stays <= e* at every larger n with the same k (so a lucky draw of few
-replicas does not count).
+replicas does not count); the table also gives the choice by the 90 % upper confidence bound
+of the RMS (chi-squared with r replicas), since an RMS from 8 replicas is itself uncertain by ~25 %.
 Wall time: Population.sample + simulate, warm numba cache (every kernel is run once before
 timing), ONE numba thread (--threads, default 1; numba.set_num_threads), OMP_WAIT_POLICY=PASSIVE;
 a run shorter than 0.2 s is run three times and its median time kept (runs are
@@ -78,6 +79,7 @@ LONG_NAMES = {"peak_resistance": "peak shear resistance max(sigma_2/sigma_1) ove
               "cycle_dissipation": "energy dissipated over the last shear cycle"}
 UNITS = {"peak_resistance": "1", "cycle_dissipation": "J m-2"}
 TARGETS = (1e-2, 1e-3)
+CONFIDENCE = 0.9  # of the upper bound of an RMS error in the stricter choice of the cheapest point
 
 
 @dataclass(frozen=True)
@@ -313,10 +315,23 @@ def assemble(ns, ks, k_ref, n_ref, scene, peak, peak_se, dis, bal, wall, seeds, 
 # ------------------------------------------------------------------------------------------
 
 
-def cheapest(res, quantity, target):
+def rms_upper(res, quantity, confidence):
+    """One-sided upper confidence bound of the RMS error (n, k) from its r replicas: RMS sqrt(r / chi2_r(1 - c)).
+
+    Exact for errors that are normal with zero mean (the Monte Carlo part); a spring error adds a common
+    bias, which narrows the spread of the squares, so the bound is then conservative."""
+    from scipy import stats
+
+    r = res["replicas"].values.astype(float)[:, None]
+    return res["rms_error"].sel(quantity=quantity).values * np.sqrt(r / stats.chi2.ppf(1.0 - confidence, r))
+
+
+def cheapest(res, quantity, target, confidence=None):
     """(n, k, mean wall time [s], RMS error) of the cheapest (n, k) whose RMS error is <= target and stays
-    <= target at every larger n with the same k; None if no point qualifies."""
-    e = res["rms_error"].sel(quantity=quantity).values  # (n, k)
+    <= target at every larger n with the same k; None if no point qualifies.  With ``confidence`` (e.g. 0.9)
+    the one-sided upper confidence bound of the RMS (:func:`rms_upper`) must be <= target instead."""
+    rms = res["rms_error"].sel(quantity=quantity).values  # (n, k)
+    e = rms if confidence is None else rms_upper(res, quantity, confidence)
     t = res["mean_wall_time"].values
     best = None
     for i_k, k in enumerate(res.k.values):
@@ -326,7 +341,7 @@ def cheapest(res, quantity, target):
             if not (np.all(np.isfinite(tail)) and np.all(tail <= target) and math.isfinite(t[i_n, i_k])):
                 continue
             if best is None or t[i_n, i_k] < best[2]:
-                best = (int(n), int(k), float(t[i_n, i_k]), float(col[i_n]))
+                best = (int(n), int(k), float(t[i_n, i_k]), float(rms[i_n, i_k]))
             break  # larger n at this k only cost more
     return best
 
@@ -375,24 +390,47 @@ def summary(res):
                if q == "peak_resistance" else "—")
         lines.append(f"| {q_title[q]} | {x:.6g} {UNITS[q] if UNITS[q] != '1' else ''} | {se:.1e} | {ke:.1e} | "
                      f"{iid} |")
-    lines += ["", "Cheapest (n, k) reaching the error (smallest mean wall time among the points whose RMS error "
-              "is at or below it and stays there at every larger n with the same k):", "",
-              "| quantity | target | cheapest (n, k) | run time | RMS error there |", "|---|---|---|---|---|"]
+    lines += ["", f"The standard error of x_ref is the spread of the {res.sizes['ref_replica']} reference runs "
+              "over sqrt(runs).  Its spring error is estimated as |x(k_ref/2) - x(k_ref)| / 3 at the largest grid n, "
+              "i.e. assuming second order in k; where the measured spring error falls faster (table below) this "
+              "overstates it.  The recorded iid standard error (from `stress_stderr`, sigma_2 at the peak over "
+              "sigma_1) is what plain Monte Carlo with the same n would give; the scrambled Sobol' replicas agree "
+              "far more closely, so it is only an indicator.  The reference uncertainty (standard error plus "
+              "spring error, both below 2e-4) is at least 5x below the targets 1e-2 and 1e-3."
+              if all(float(res["reference_rel_stderr"].sel(quantity=q))
+                     + abs(float(res["reference_rel_k_error"].sel(quantity=q))) < 2e-4 for q in QUANTITIES) else
+              f"The standard error of x_ref is the spread of the {res.sizes['ref_replica']} reference runs over "
+              "sqrt(runs); its spring error is estimated as |x(k_ref/2) - x(k_ref)| / 3 (second order in k)."]
+    lines += ["", "Cheapest (n, k) reaching the error: the smallest mean wall time among the points whose RMS "
+              "error is at or below it and stays there at every larger n with the same k.  An RMS from r "
+              f"replicas is itself uncertain (about ±25 % for r = 8), so the last columns ask the same of its "
+              f"one-sided {CONFIDENCE * 100:g} % upper confidence bound, RMS sqrt(r / chi2_r(0.1)) (factor 1.5 for "
+              "r = 8, 2.3 for r = 3):", "",
+              f"| quantity | target | cheapest (n, k) | run time | RMS error there | cheapest (n, k), {CONFIDENCE * 100:g} % "
+              "confidence | run time | RMS error there |", "|---|---|---|---|---|---|---|---|"]
     sentences = []
     for q in QUANTITIES:
         parts = []
         for target in TARGETS:
-            c = cheapest(res, q, target)
+            c, cc = cheapest(res, q, target), cheapest(res, q, target, CONFIDENCE)
+            cells = []
+            for x in (c, cc):
+                if x is None:
+                    n, k, t, e = best_achieved(res, q)
+                    cells.append(f"not reached (best: n = {fmt_n(n)}, k = {k}, {e:.1e} in {fmt_t(t)}) | — | —")
+                else:
+                    cells.append(f"n = {fmt_n(x[0])}, k = {x[1]} | {fmt_t(x[2])} | {x[3]:.1e}")
+            lines.append(f"| {q_title[q]} | {pct(target)} | " + " | ".join(cells) + " |")
             if c is None:
                 n, k, t, e = best_achieved(res, q)
-                lines.append(f"| {q_title[q]} | {pct(target)} | not reached (best: n = {fmt_n(n)}, k = {k}, "
-                             f"{e:.1e} in {fmt_t(t)}) | — | — |")
                 parts.append(f"{pct(target)} is not reached on the grid (best {e:.1e} at n = {fmt_n(n)}, k = {k}, "
                              f"{fmt_t(t)})")
             else:
-                n, k, t, e = c
-                lines.append(f"| {q_title[q]} | {pct(target)} | n = {fmt_n(n)}, k = {k} | {fmt_t(t)} | {e:.1e} |")
-                parts.append(f"{pct(target)} needs n = {fmt_n(n)} asperities and k = {k} springs ({fmt_t(t)})")
+                conf = ("the same point" if cc is not None and cc[:2] == c[:2] else
+                        f"n = {fmt_n(cc[0])}, k = {cc[1]}, {fmt_t(cc[2])}" if cc is not None else "not reached")
+                smallest = " (the smallest n tried)" if c[0] == int(res.n.values[0]) else ""
+                parts.append(f"{pct(target)} needs n = {fmt_n(c[0])}{smallest} asperities and k = {c[1]} springs per contact "
+                             f"({fmt_t(c[2])} per run; with {CONFIDENCE * 100:g} % confidence: {conf})")
         sentences.append(f"For the {q_title[q]} of the `mdr` law on a cyclic path (R1, 300 MPa, "
                          f"Delta_2 = ±{res.attrs['amplitude_m'] * 1e6:g} um, Sobol' sampler, one thread), "
                          + " and ".join(parts) + ".")
@@ -418,6 +456,13 @@ def summary(res):
                      f"({fmt_t(res['mean_wall_time'].values[i_n, i_k])})" for i_k in range(len(ks))]
             lines.append(f"| {fmt_n(int(n))} | {int(res['replicas'].values[i_n])} | " + " | ".join(cells) + " |")
         lines.append("")
+    t = res["mean_wall_time"].values
+    lines += [f"Run times: at n = {fmt_n(int(ns[0]))} a run costs {fmt_t(float(t[0, 0]))} (k = {int(ks[0])}) to "
+              f"{fmt_t(float(t[0, -1]))} (k = {int(ks[-1])}), much of it per-increment overhead (the same "
+              f"{res.attrs['path'].count('stage')}-stage path for every run); at n = {fmt_n(int(ns[-1]))}, "
+              f"k = {int(ks[-1])} costs {float(t[-1, -1] / t[-1, 0]):.1f}x k = {int(ks[0])}.  All on one numba thread "
+              "of a 2-core machine shared with other jobs (load average above): the times are as measured under "
+              "that load.", ""]
     lines += ["## For the README", ""] + sentences
     return "\n".join(lines) + "\n"
 

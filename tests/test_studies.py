@@ -86,7 +86,7 @@ def test_quantities_read_the_first_branch_and_the_last_cycle(mdr_convergence):
 
 
 def grid(rms, t, ns=(1024, 2048, 4096), ks=(2, 4, 8)):
-    return xr.Dataset({"rms_error": (("quantity", "n", "k"), np.asarray(rms)[None]),
+    return xr.Dataset({"rms_error": (("quantity", "n", "k"), np.asarray(rms, dtype=float)[None]),
                        "mean_wall_time": (("n", "k"), np.asarray(t))},
                       coords={"quantity": ["q"], "n": list(ns), "k": list(ks)})
 
@@ -110,3 +110,15 @@ def test_cheapest_picks_the_smallest_time(mdr_convergence):
     res = grid(rms, t, ns=(1024, 2048), ks=(2, 4))
     assert mdr_convergence.cheapest(res, "q", 1e-3) == (1024, 4, 1.5, 9e-4)
     assert math.isclose(mdr_convergence.cheapest(res, "q", 2e-3)[2], 1.0)
+
+
+def test_confident_choice_asks_the_upper_bound_of_the_rms(mdr_convergence):
+    t = [[1.0, 1.5], [2.0, 3.0]]
+    rms = [[9e-4, 7e-4], [5e-4, 4e-4]]
+    res = grid(rms, t, ns=(1024, 2048), ks=(2, 4))
+    res["replicas"] = ("n", np.array([8, 8]))
+    factor = math.sqrt(8 / 3.4895)  # chi2_8 quantile at 0.1
+    np.testing.assert_allclose(mdr_convergence.rms_upper(res, "q", 0.9), np.asarray(rms) * factor, rtol=1e-4)
+    assert mdr_convergence.cheapest(res, "q", 1e-3) == (1024, 2, 1.0, 9e-4)
+    # 9e-4 x 1.51 and 7e-4 x 1.51 exceed 1e-3; at n = 2048, 5e-4 x 1.51 = 7.6e-4 does not
+    assert mdr_convergence.cheapest(res, "q", 1e-3, confidence=0.9) == (2048, 2, 2.0, 5e-4)
