@@ -38,11 +38,12 @@ a run shorter than 0.2 s is run three times and its median time kept (runs are
 deterministic), as in scenarios/convergence.py.  The reference runs are timed but are not
 part of the grid.
 
-Run:   python studies/mdr_convergence.py            (full study: about 15-25 min on one core of
-                                                    this shared 2-core machine; the 4 reference
-                                                    runs are about 2/5 of it)
+Run:   python studies/mdr_convergence.py            (full study: 14.6 min on one core of this
+                                                    shared 2-core machine at load average 2.8-4.6;
+                                                    the 4 reference runs, ~110 s each, are half of it)
        python studies/mdr_convergence.py --quick    (smoke run: n = 2^10, 2^11, k = 2, 4, 8,
                                                     short path; a few seconds with a warm cache)
+       python studies/mdr_convergence.py --replot   (figure and table again from the netCDF file)
 Writes outputs/mdr_convergence.nc (dims n, k, replica, quantity, ref_replica),
 outputs/mdr_convergence.png (log-log error against wall time, one line per k and per n;
 error split into Monte Carlo and spring parts) and outputs/mdr_convergence.md (cheapest
