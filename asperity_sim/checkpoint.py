@@ -432,9 +432,9 @@ def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> N
         raise CheckpointError(f"{where}: array pos_prev = {prev.tolist()} (valid: NaN first (no previous point) or "
                               "s in [0, 1] and a finite Delta and slope)")
     if birth:
-        require(arrays, "theta_birth", shape=(n,), dtype=f8, finite=False, lo=0.0, hi=half_pi)
-        if np.isinf(arrays["theta_birth"]).any():
-            raise CheckpointError(f"{where}: array theta_birth holds inf (valid: NaN (not born) or [0, pi/2])")
+        require(arrays, "state_theta_birth", shape=(n,), dtype=f8, finite=False, lo=0.0, hi=half_pi)
+        if np.isinf(arrays["state_theta_birth"]).any():
+            raise CheckpointError(f"{where}: array state_theta_birth holds inf (valid: NaN (not born) or [0, pi/2])")
 
 
 @contextlib.contextmanager

@@ -250,7 +250,8 @@ class _Run:
         if loaded is not None:
             meta, arrays = loaded
             with ckpt.guard(resume):  # every array is checked before any kernel sees it
-                ckpt.check_run_arrays(arrays, n=int(meta["config"]["n"]), n_stages=len(path.stages))
+                ckpt.check_run_arrays(arrays, n=int(meta["config"]["n"]), n_stages=len(path.stages),
+                                      birth=policy == "birth")
                 pop = _population_from(params, meta, arrays)
             if population is not None and not all(np.array_equal(getattr(population, a), getattr(pop, a))
                                                   for a in ("r", "R", "u", "cos_phi", "sin_phi")):
@@ -317,6 +318,15 @@ class _Run:
                 if a.shape[:1] != (size,) or a.dtype != np.dtype(var.dtype):
                     raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r}: array rec_{name} has shape "
                                                f"{a.shape} and dtype {a.dtype}, expected {size} rows of {var.dtype}")
+            n, where = self.pop.n, os.fspath(resume)
+            for i, _ in enumerate(meta["snapshot_steps"]):
+                for key, shape, dtype in (("delta_n", (n,), "f8"), ("theta", (n,), "f8"), ("force", (n, 3), "f8"),
+                                          ("state", (n,), "i1")):
+                    ckpt.require(arrays, f"snap{i}_{key}", shape=shape, dtype=dtype, path=where)
+            if self.law.history is not None:
+                ckpt.require(arrays, "energy_f", shape=(3,), dtype="f8", path=where)
+                ckpt.require(arrays, "energy_events", shape=(1,), dtype="i8", lo=0, path=where)
+                ckpt.require(arrays, "energy_transitions", shape=(4, 4), dtype="i8", lo=0, path=where)
         try:
             self.attrs = dict(meta["attrs"])
             self.wall_before = float(meta.get("wall_time_s", 0.0))

@@ -12,7 +12,7 @@ kernel sees it.  No temporary file survives a failed or killed write.
 The property tests build one real checkpoint per law (``simulate(..., checkpoint=)``, n = 200)
 and corrupt it by the thousand.  The forged-array cases resume in a child process (a forged
 array that reached a kernel could crash the interpreter); those that need the driver to call
-:func:`require` on its arrays are marked ``xfail(strict=False)`` until the driver does.
+:func:`require` on its arrays before any kernel sees them (``driver._Run``).
 """
 
 import io
@@ -518,7 +518,7 @@ ALWAYS = ("shorter", "longer", "flat", "float32", "to_int", "to_float", "scalar"
 RANGE = {"pop_r": ("reverse", "negative"), "pop_R": ("negative",), "pop_u": ("huge", "negative"),
          "pop_cos_phi": ("huge",), "pop_sin_phi": ("huge",), "ev_ints": ("negative", "huge"),
          "pos_i": ("negative", "huge"), "energy_coarsenings": ("negative",), "energy_transitions": ("negative",)}
-NAN_MEANS_UNSET = {"pos_prev", "theta_birth"}  # NaN is a legal value there ("no previous point", "not born")
+NAN_MEANS_UNSET = {"pos_prev", "state_theta_birth"}  # NaN is a legal value there ("no previous point", "not born")
 
 
 def invalid_forgeries(arrays):
@@ -534,8 +534,6 @@ def invalid_forgeries(arrays):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("law", ["paper", "mdr"])
-@pytest.mark.xfail(strict=False, reason="driver-side validation pending: driver._restore and _population_from "
-                                        "must call checkpoint.require / checkpoint.guard on every array")
 def test_forged_arrays_raise_checkpoint_error_or_resume_identically(saved, tmp_path, law):
     raw, _ = saved[law]
     with zipfile.ZipFile(io.BytesIO(raw)) as z:
@@ -568,11 +566,7 @@ def test_forged_population_arrays_never_reach_a_kernel(saved, tmp_path, law):
     crashed = {k: v for k, v in outcomes.items() if v.startswith("child process died") or v.startswith("resumed")}
     assert not crashed, crashed
     wrong = {k: v for k, v in outcomes.items() if v not in ("error", "same")}
-    if wrong:  # a ValueError from Population (not yet wrapped by the driver into CheckpointError)
-        assert all(v.startswith("ValueError: Population.") for v in wrong.values()), wrong
-        pytest.xfail(f"driver-side validation pending: {len(wrong)} forged population arrays raise ValueError "
-                     "from Population.__post_init__, not yet CheckpointError (driver._population_from must use "
-                     "checkpoint.guard)")
+    assert not wrong, wrong
 
 
 def test_netcdf_temporaries_of_a_killed_write_are_removed_by_the_next_write(tmp_path):
@@ -624,7 +618,7 @@ def test_check_run_arrays_accepts_genuine_checkpoints_and_refuses_forged_ones(tm
     rng = np.random.default_rng(1)
     checked = ("pop_r", "pop_R", "pop_u", "pop_cos_phi", "pop_sin_phi", "delta", "ev_delta", "ev_stress",
                "ev_stderr", "ev_covariance", "ev_tangent", "ev_ints", "ev_mean_theta", "pos_i", "pos_f",
-               "pos_start_delta", "pos_start_stress") + (("theta_birth",) if policy == "birth" else ())
+               "pos_start_delta", "pos_start_stress") + (("state_theta_birth",) if policy == "birth" else ())
     n_cases = 0
     for name in checked:
         hows = list(ALWAYS) + list(RANGE.get(name, ()))
