@@ -166,11 +166,10 @@ class ContactState:
         cap = self.asp.size
         if needed <= cap:
             return
-        new = max(needed, int(cap * 1.5) + 1)
-        self.asp = _grown(self.asp, new, -1)
-        self.dn_c = _grown(self.dn_c, new, 0)
-        self.code = _grown(self.code, new, 0)
-        self.arrays = tuple(_grown(a, new, 0) for a in self.arrays)
+        new = max(needed, int(cap * 1.25) + 1)
+        for a in (self.asp, self.dn_c, self.code, *self.arrays):
+            _grow_in_place(a, new)
+        self.asp[cap:] = -1
 
     # -- snapshots and checkpoints ----------------------------------------------------------------
 
@@ -242,10 +241,14 @@ class ContactState:
         self.delta_c = delta_c.copy()
 
 
-def _grown(a, new, fill):
-    b = np.full((new,) + a.shape[1:], fill, dtype=a.dtype)
-    b[:a.shape[0]] = a
-    return b
+def _grow_in_place(a, new):
+    """Grow ``a`` along its first axis to ``new`` rows, in place (new rows zero).
+
+    ``ndarray.resize`` reallocates the buffer (``realloc``, which moves large blocks by remapping
+    pages): the peak memory of a growing spring store stays near its new size, where a copy into a
+    new array would hold both.  The state's arrays are never shared with a view.
+    """
+    a.resize((new,) + a.shape[1:], refcheck=False)
 
 
 def _checked(arrays, name, shape, dtype, finite=True):
