@@ -65,8 +65,11 @@ def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
 
 @numba.njit(cache=True, inline="always")
 def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, write):
-    """Tangential force, its Jacobian, counts and (``write``) energy of one contact's springs.
+    """Tangential force, its Jacobian, counts and (``write``) energy of one contact's springs, one by one.
 
+    For a commit and for a fresh contact in a trial (a committed contact in a trial goes through
+    :func:`committed_springs`, the same physics without energies, with the springs beyond the
+    stored ones summed in closed form).
     ``w`` (>= stored, 2): committed springs (ignored when ``fresh``); ``w_out``: scratch for the
     new springs (``write`` only).  Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs,
     n_slip, work, d_stored, dissipation), J = d(F_s, F_t)/d(dn, dds, ddt).
@@ -91,39 +94,11 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     n_springs = n_slip = 0
     work = stored_change = dissipation = 0.0
     gap = dn - dn_c
-    tail = not fresh and not write  # a trial sums the springs beyond the stored ones in closed form
     i = 0
     while True:
         x2 = c * (i + 0.5) * (i + 0.5)
         u = dn - x2
         if u <= 0.0:
-            break
-        if tail and i == n_store:
-            m, tail_u, tail_uc = entering_tail(i, dn, dn_c, c)
-            n_springs += m
-            if dds * dds + ddt * ddt <= (lm_r * gap) ** 2 and lm != 0.0:  # every entering spring sticks
-                Fs += tail_u / gap * dds
-                Ft += tail_u / gap * ddt
-                J10 += tail_uc / (gap * gap) * dds
-                J20 += tail_uc / (gap * gap) * ddt
-                J11 += tail_u / gap
-                J22 += tail_u / gap
-            else:  # every one slips, along the increment
-                n_slip += m
-                dd = math.sqrt(dds * dds + ddt * ddt)
-                es, et = (dds / dd, ddt / dd) if dd > 0.0 else (0.0, 0.0)
-                ratio = lm_r * gap / dd if dd > 0.0 else 0.0
-                P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
-                bs, bt = tail_uc / (gap * gap) * dds, tail_uc / (gap * gap) * ddt
-                dlim_sum = lm * (rho * m + drho * tail_u)
-                J10 += P00 * bs + P01 * bt + dlim_sum * es
-                J20 += P01 * bs + P11 * bt + dlim_sum * et
-                J11 += tail_u / gap * P00
-                J12 += tail_u / gap * P01
-                J21 += tail_u / gap * P01
-                J22 += tail_u / gap * P11
-                Fs += lm_r * tail_u * es
-                Ft += lm_r * tail_u * et
             break
         u_c = dn_c - x2
         g = x2 / dn if scaled else 0.0  # d x_i²/R / d dn: positions scale with a fresh contact
