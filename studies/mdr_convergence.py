@@ -372,7 +372,7 @@ def summary(res):
     """Markdown: setting, reference, table of the cheapest (n, k), error split, sentences for the README."""
     q_title = {"peak_resistance": "peak shear resistance", "cycle_dissipation": "dissipation per cycle"}
     ls, le = res.attrs["load_average_start"], res.attrs["load_average_end"]
-    lines = [f"# Error against run time for the history law `mdr` (issue 23, item 6)", "",
+    lines = ["# Error against run time for the history law `mdr` (issue 23, item 6)", "",
              f"Scene: R1, law mdr, policy follow, Sobol' sampler; {res.attrs['scene']}.  Peak shear resistance = max "
              "sigma_2/sigma_1 on the first loading branch; dissipation per cycle = increase of the recorded "
              "dissipation over the last (second) cycle.  Error = RMS over replicas of (x - x_ref)/x_ref.  "
