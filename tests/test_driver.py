@@ -845,7 +845,7 @@ def test_bad_settings_or_population_type_raise_value_error(no_work, kw):
 def test_cubic_predictor_is_third_order_on_a_smooth_path_and_falls_back_at_a_kink():
     """The Hermite extrapolation from two converged points (values and exact slopes) has an
     error O(h^4), far below the tangent predictor's O(h^2); at a slope jump it keeps the tangent."""
-    from asperity_sim.driver import _cubic_predict, _Position
+    from asperity_sim.stepping import _cubic_predict, _Position
 
     def x(s):
         return np.array([np.exp(s), 0.0, np.sin(3.0 * s)])

@@ -1,0 +1,35 @@
+"""The errors a run stops with (every one carries the converged part of the run as ``.dataset``).
+
+Owns the exception types of :func:`asperity_sim.simulate`: a run stops only with a named
+:class:`SimulationError` that says why, never with NaN.
+"""
+
+from __future__ import annotations
+
+
+class _Deadline(Exception):
+    """The wall-time limit passed during an increment (turned into WallTimeExceededError by the loop)."""
+
+
+class SimulationError(RuntimeError):
+    """A run stopped before the end of its path; ``.dataset`` holds every converged increment."""
+
+    def __init__(self, message, dataset=None):
+        super().__init__(message)
+        self.dataset = dataset
+
+
+class StressNotReachableError(SimulationError):
+    """A prescribed stress cannot be carried by the interface (e.g. shear above its strength)."""
+
+
+class ConvergenceError(SimulationError):
+    """An increment did not converge even after the largest number of cut-backs."""
+
+
+class OutputWriteError(SimulationError):
+    """A run completed but its output file could not be written; ``.dataset`` holds the complete result."""
+
+
+class WallTimeExceededError(SimulationError):
+    """The run took longer than its ``max_wall_time``; ``.dataset`` holds every converged increment."""
