@@ -11,8 +11,10 @@ R1 (or S1) set of Table 1 towards an edge of SPEC §1 -- alone and combined -- a
   sigma_1 = sigma_2 = 0 held, then shear at zero normal stress, then sigma_1 to sigma_n under
   shear), ``stress_shear`` (sigma_1, sigma_2 = 0.3 mu sigma_1 and sigma_3 = 0 all prescribed),
   ``above_strength`` (sigma_2 = 3 (mu + 1) sigma_n prescribed, beyond the frictional
-  strength: must stop with ``StressNotReachableError``) and ``tension`` (sigma_1 < 0: must
-  stop with ``StressNotReachableError``),
+  strength: must stop with ``StressNotReachableError``), ``tension`` (sigma_1 < 0: must
+  stop with ``StressNotReachableError``), ``reload`` (sigma_1 to sigma_n, to 0 and back under
+  stress control: the predictor from an unloaded interface must not run away) and
+  ``seat_load`` (sigma_1 to 1 mPa, then to sigma_n),
 
 for the laws ``paper`` and ``mdr``.  d is the larger of the 15 % height quantile and 0.6
 mean heights (so about 15 % of the asperities touch at the end of the closure step, as for
@@ -55,7 +57,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import parse_args  # noqa: E402
 
 LAWS = ("paper", "mdr")
-PATHS = ("three_step", "cns", "cyclic", "zero_load", "stress_shear", "above_strength", "tension")
+PATHS = ("three_step", "cns", "cyclic", "zero_load", "stress_shear", "above_strength", "tension", "reload",
+         "seat_load")
 DEFAULT_PATHS = ("three_step", "cns", "cyclic")
 SQ = 1.0 / (3.0 * math.sqrt(2.0))  # c = d = SQ puts b/2 + 3 sqrt(c² + d²) exactly at 1 with b = 0
 R1_MEAN = (6.14 + 1.0) * 3.52e-6   # mean height of R1 [m]
@@ -82,8 +85,9 @@ class Case:
 
 CASES = (
     # -- alone ------------------------------------------------------------------------------
-    Case("R1", note="Table 1 rough set (e = 1)"),
-    Case("S1", base="S1", note="Table 1 smooth set"),
+    Case("R1", paths=DEFAULT_PATHS + ("reload", "seat_load"),
+         note="Table 1 rough set (e = 1); also unload-reload and seat-load under stress control"),
+    Case("S1", base="S1", paths=DEFAULT_PATHS + ("reload", "seat_load"), note="Table 1 smooth set"),
     Case("e=0", {"e": 0.0}, paths=DEFAULT_PATHS + ("above_strength",),
          note="flat on rough: theta_m = 0, shear strength exactly mu sigma_1"),
     Case("theta_m=pi/2", {"R_m": 2e-6, "R_sigma": 0.5e-6}, quick=False,
@@ -215,6 +219,17 @@ def build_path(kind, p, d, sigma_n, inc):
             paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
             paths.Stage((S, S, S), (sigma_n, 0.3 * p.mu * sigma_n, 0.0), inc, name="shear by stress"),
         ), name="stress_shear")
+    if kind == "reload":
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="normal loading"),
+            paths.Stage((S, D, D), (0.0, 0.0, 0.0), inc, name="unloading to zero"),
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="reloading from zero"),
+        ), name="reload")
+    if kind == "seat_load":
+        return paths.LoadPath((
+            paths.Stage((S, D, D), (1e-3, 0.0, 0.0), 2, name="seating at 1 mPa"),
+            paths.Stage((S, D, D), (sigma_n, 0.0, 0.0), inc, name="loading"),
+        ), name="seat_load")
     if kind == "tension":
         return paths.LoadPath((
             paths.Stage((S, D, D), (-sigma_n, 0.0, 0.0), inc, name="tension"),
