@@ -215,6 +215,10 @@ def _failure(result, ev, free, start_stress, end, target_stress, i_stage, stage,
     where = f"stage {i_stage} ({stage.name or 'unnamed'}) stopped at {s:.4g} of the stage after {cuts - 1} cut-backs"
     if not free.any():
         return ConvergenceError(f"{where}: {result.message}")
+    if free[0] and target_stress[0] < 0.0 and ev.n_contact == 0:
+        return StressNotReachableError(
+            f"sigma_1 = {target_stress[0]:.6g} Pa (tension) cannot be reached: {where}; the interface has no contact "
+            "(sigma = 0): opening it further keeps the surfaces apart, closing it makes sigma_1 compressive")
     ramped = _ramped(free, start_stress, end)
     names = ", ".join(f"sigma_{k + 1} = {target_stress[k]:.6g} Pa" for k in ramped)
     reached = ", ".join(f"sigma_{k + 1} = {ev.stress[k]:.6g} Pa" for k in ramped)

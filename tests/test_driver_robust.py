@@ -93,3 +93,11 @@ def test_a_stopped_run_keeps_its_own_error_when_the_write_fails(tmp_path, monkey
     assert exc.value.dataset is not None
     assert any("could not be written" in n for n in getattr(exc.value, "__notes__", []))
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("control", [(S, D, D), (S, S, S)])
+def test_tension_from_zero_is_named_unreachable(control):
+    path = paths.LoadPath((paths.Stage(control, (-1e6, 0, 0), 3, name="tension"),))
+    with pytest.raises(asim.StressNotReachableError, match="tension|cannot be reached") as exc:
+        simulate(presets.R1, path, n=500)
+    assert exc.value.dataset.sizes["step"] >= 1
