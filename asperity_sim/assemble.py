@@ -68,14 +68,14 @@ def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
     return scale * th_m, scale * slope * dclosure_d1
 
 
-@numba.njit(cache=True, inline="always")
-def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
-    """Add one contact's global force, force products, tangent and counts to ``acc``.
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1):
+    """(g (3), T (9, row-major)): one contact's global force and its tangent d f / d Delta.
 
     ``out`` is the law's 13 values (f_n, f_s, f_t, J row-major, state code); see the module
-    docstring for K and the frame-rotation term.
+    docstring for K and the frame-rotation term.  Shared by the scalar and the vectorised loops.
     """
-    f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22, code = out
+    f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22, _ = out
     n0, n1, n2 = ct, st * cp, st * sp
     s0, s1, s2 = -st, ct * cp, ct * sp
     t1, t2 = -sp, cp
@@ -92,9 +92,19 @@ def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
     A20 = J20 * k00 + J21 * k10
     A21 = J20 * n1 + J21 * s1 + J22 * t1
     A22 = J20 * n2 + J21 * s2 + J22 * t2
-    v0 = (f_n * s0 - f_s * n0) * th1
-    v1 = (f_n * s1 - f_s * n1) * th1
-    v2 = (f_n * s2 - f_s * n2) * th1
+    return (g0, g1, g2,
+            n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1, n0 * A01 + s0 * A11, n0 * A02 + s0 * A12,
+            n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1, n1 * A01 + s1 * A11 + t1 * A21,
+            n1 * A02 + s1 * A12 + t1 * A22,
+            n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1, n2 * A01 + s2 * A11 + t2 * A21,
+            n2 * A02 + s2 * A12 + t2 * A22)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
+    """Add one contact's global force, force products, tangent and counts to ``acc``."""
+    g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1)
+    code = out[12]
     acc[0] += g0
     acc[1] += g1
     acc[2] += g2
@@ -104,15 +114,15 @@ def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
     acc[6] += g0 * g1
     acc[7] += g0 * g2
     acc[8] += g1 * g2
-    acc[9] += n0 * A00 + s0 * A10 + v0
-    acc[10] += n0 * A01 + s0 * A11
-    acc[11] += n0 * A02 + s0 * A12
-    acc[12] += n1 * A00 + s1 * A10 + t1 * A20 + v1
-    acc[13] += n1 * A01 + s1 * A11 + t1 * A21
-    acc[14] += n1 * A02 + s1 * A12 + t1 * A22
-    acc[15] += n2 * A00 + s2 * A10 + t2 * A20 + v2
-    acc[16] += n2 * A01 + s2 * A11 + t2 * A21
-    acc[17] += n2 * A02 + s2 * A12 + t2 * A22
+    acc[9] += T0
+    acc[10] += T1
+    acc[11] += T2
+    acc[12] += T3
+    acc[13] += T4
+    acc[14] += T5
+    acc[15] += T6
+    acc[16] += T7
+    acc[17] += T8
     acc[18] += 1.0
     if code == 3.0:
         acc[19] += 1.0
@@ -303,37 +313,22 @@ def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts
     ds = -st * x + ct * shear_ph
     touch = dn > 0.0
     th1 = follow_slope(touch, y, yc, scale, k_e, inv_R, dc)
-    f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22, code = local(dn if touch else 1.0, ds, dt, R_j,
-                                                                           consts)
-    f_n, f_s, f_t = (f_n, f_s, f_t) if touch else (0.0, 0.0, 0.0)
-    J00, J01, J02 = (J00, J01, J02) if touch else (0.0, 0.0, 0.0)
-    J10, J11, J12 = (J10, J11, J12) if touch else (0.0, 0.0, 0.0)
-    J20, J21, J22 = (J20, J21, J22) if touch else (0.0, 0.0, 0.0)
-    n0, n1, n2 = ct, st * cp, st * sp
-    s0, s1, s2 = -st, ct * cp, ct * sp
-    t1, t2 = -sp, cp
-    vals[V_G * BLOCK + i] = f_n * n0 + f_s * s0
-    vals[(V_G + 1) * BLOCK + i] = f_n * n1 + f_s * s1 + f_t * t1
-    vals[(V_G + 2) * BLOCK + i] = f_n * n2 + f_s * s2 + f_t * t2
-    k00, k10 = n0 + ds * th1, s0 - dn * th1
-    A00 = J00 * k00 + J01 * k10
-    A01 = J00 * n1 + J01 * s1 + J02 * t1
-    A02 = J00 * n2 + J01 * s2 + J02 * t2
-    A10 = J10 * k00 + J11 * k10
-    A11 = J10 * n1 + J11 * s1 + J12 * t1
-    A12 = J10 * n2 + J11 * s2 + J12 * t2
-    A20 = J20 * k00 + J21 * k10
-    A21 = J20 * n1 + J21 * s1 + J22 * t1
-    A22 = J20 * n2 + J21 * s2 + J22 * t2
-    vals[V_T * BLOCK + i] = n0 * A00 + s0 * A10 + (f_n * s0 - f_s * n0) * th1
-    vals[(V_T + 1) * BLOCK + i] = n0 * A01 + s0 * A11
-    vals[(V_T + 2) * BLOCK + i] = n0 * A02 + s0 * A12
-    vals[(V_T + 3) * BLOCK + i] = n1 * A00 + s1 * A10 + t1 * A20 + (f_n * s1 - f_s * n1) * th1
-    vals[(V_T + 4) * BLOCK + i] = n1 * A01 + s1 * A11 + t1 * A21
-    vals[(V_T + 5) * BLOCK + i] = n1 * A02 + s1 * A12 + t1 * A22
-    vals[(V_T + 6) * BLOCK + i] = n2 * A00 + s2 * A10 + t2 * A20 + (f_n * s2 - f_s * n2) * th1
-    vals[(V_T + 7) * BLOCK + i] = n2 * A01 + s2 * A11 + t2 * A21
-    vals[(V_T + 8) * BLOCK + i] = n2 * A02 + s2 * A12 + t2 * A22
+    out = local(dn if touch else 1.0, ds, dt, R_j, consts)
+    code = out[12]
+    g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds, dn, th1)
+    # out of contact: zeros (selects, so that the loop stays vectorised)
+    vals[V_G * BLOCK + i] = g0 if touch else 0.0
+    vals[(V_G + 1) * BLOCK + i] = g1 if touch else 0.0
+    vals[(V_G + 2) * BLOCK + i] = g2 if touch else 0.0
+    vals[V_T * BLOCK + i] = T0 if touch else 0.0
+    vals[(V_T + 1) * BLOCK + i] = T1 if touch else 0.0
+    vals[(V_T + 2) * BLOCK + i] = T2 if touch else 0.0
+    vals[(V_T + 3) * BLOCK + i] = T3 if touch else 0.0
+    vals[(V_T + 4) * BLOCK + i] = T4 if touch else 0.0
+    vals[(V_T + 5) * BLOCK + i] = T5 if touch else 0.0
+    vals[(V_T + 6) * BLOCK + i] = T6 if touch else 0.0
+    vals[(V_T + 7) * BLOCK + i] = T7 if touch else 0.0
+    vals[(V_T + 8) * BLOCK + i] = T8 if touch else 0.0
     vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
     vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
     vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
