@@ -583,7 +583,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_COMMIT)
-        scratch = np.zeros((2 * n_store, 2))
+        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         for sl in range(ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)):
             j = asp[sl]
             if j < 0:
@@ -646,7 +646,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     n_chunks = (m + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_COMMIT)
-        scratch = np.zeros((2 * n_store, 2))
+        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         for ii in range(ic * CHUNK, min(m, (ic + 1) * CHUNK)):
             sl = new_slots[ii]
             j = asp[sl]

@@ -59,7 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-FORMAT = 2
+FORMAT = 3  # 3: mdr springs stored (slot, component, spring), one contiguous row per component
 SUFFIX = ".npz"
 MAX_MEMBERS = 100_000  # more arrays than any run writes (snapshots add a handful each)
 _DTYPE_KINDS = "biufU"  # bool, integers, floats, the unicode meta record; never object or structured

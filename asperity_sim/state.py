@@ -86,8 +86,8 @@ class ContactState:
 
     @property
     def n_stored(self) -> int:
-        """Springs (law state rows) per slot."""
-        return self.arrays[0].shape[1] if self.has_history else 0
+        """Springs per slot (the last axis of the law's first array)."""
+        return self.arrays[0].shape[-1] if self.has_history else 0
 
     @property
     def n_contacts(self) -> int:

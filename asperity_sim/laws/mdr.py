@@ -63,174 +63,198 @@ def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
     return math.sqrt(R * (dn if scaled else fixed)) / k, scaled
 
 
-@numba.njit(cache=True, inline="always")
+FAST = {"reassoc"}
+LANES = 8  # the sums over springs may be reordered, so that the loops vectorise
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def spring_x2(c, i):
+    """x_i²/R = c (i + 1/2)² of spring i, written once so that every loop takes the same stick/slip decisions."""
+    y = i + 0.5
+    return c * (y * y)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt, lm_r, dlim, can_stick):
+    """One spring's new vector and its share of the force and Jacobian, branch-free.
+
+    ``memory``: the spring continues from its committed vector (wcs, wct); else it enters and
+    takes the part a = u / gap of the increment after its entry (a = 1 if it overlapped
+    already, u_c > 0), with da/d dn = ((1 - g) gap - u) / gap².  Returns (ws, wt, stick, a,
+    F_s, F_t, J10, J11, J12, J20, J22) with J21 = J12.
+    """
+    enter = ~memory & (u_c <= 0.0)
+    a = u / gap if enter else 1.0
+    da = ((1.0 - g) * gap - u) / (gap * gap) if enter else 0.0
+    ws, wt = wcs + a * dds, wct + a * ddt
+    limit = lm_r * u
+    m2 = ws * ws + wt * wt
+    stick = can_stick & (m2 <= limit * limit)
+    mm = fsqrt(m2)
+    inv_m = 1.0 / mm if mm > 0.0 else 0.0
+    es, et = ws * inv_m, wt * inv_m
+    ratio = limit * inv_m
+    # slip: w = limit e; d(limit e)/d(w*) = ratio (I - e e^T), d limit / d dn = dlim
+    P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
+    bs, bt = da * dds, da * ddt
+    return (ws if stick else limit * es, wt if stick else limit * et, stick, a,
+            ws if stick else limit * es, wt if stick else limit * et,
+            bs if stick else P00 * bs + P01 * bt + dlim * es,
+            a if stick else a * P00,
+            0.0 if stick else a * P01,
+            bt if stick else P01 * bs + P11 * bt + dlim * et,
+            a if stick else a * P11)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
+    """(f_n, k_n, n_in, rho, drho): Hertz force and stiffness, springs in contact, and the Coulomb scale.
+
+    The Coulomb limit of spring i is lam mu rho u_i, with rho = f_n / (2 E* h sum u_i) the ratio
+    of the Hertz force to the springs' own normal force (1 up to the discretisation), so that a
+    contact in full slip carries exactly mu f_n, as the paper law; drho = d rho / d dn (zero when
+    h follows the overlap: both forces then grow as dn^(3/2)).
+    """
+    f_n, k_n = hertz(dn, R, E_star)
+    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
+    if sum_u <= 0.0:
+        return f_n, k_n, n_in, 1.0, 0.0
+    rho = f_n / (2.0 * E_star * h * sum_u)
+    return f_n, k_n, n_in, rho, 0.0 if scaled else rho * (k_n / f_n - n_in / sum_u)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def add_spring(i, wcs, wct, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q,
+               w_out, write):
+    """Spring i (committed vector (wcs, wct) if ``held``): its share (F_s, F_t, J10, J11, J12, J20, J22, sticks,
+    work, change of stored energy, dissipation); the energies, and the new vector in ``w_out``, only if ``write``
+    (a constant at every call: a conditional store would keep the loop from vectorising)."""
+    wcs, wct = float(wcs), float(wct)
+    x2 = spring_x2(c, i)
+    u, u_c = dn - x2, dn_c - x2
+    g = x2 * inv_dn if scaled else 0.0  # d x_i²/R / d dn: positions scale with a fresh contact
+    memory = held & ((u_c > 0.0) | (wcs != 0.0) | (wct != 0.0))
+    dlim = lm * (rho * (1.0 - g) + u * drho)
+    ws, wt, stick, a, fs, ft, j10, j11, j12, j20, j22 = spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt,
+                                                                   lm_r, dlim, can_stick)
+    work = de = dd = 0.0
+    if write:  # a commit: the new springs and the energy of the increment
+        w_out[0, i] = ws
+        w_out[1, i] = wt
+        dis, dit = a * dds, a * ddt  # displacement this spring took while in contact
+        de = 0.5 * q * (ws * ws + wt * wt - wcs * wcs - wct * wct)
+        ps, pt = wcs + dis - ws, wct + dit - wt  # its slip (zero when it sticks)
+        # a sticking spring is linear: its work is its change of energy
+        work = de if stick else q * (ws * dis + wt * dit)
+        dd = 0.0 if stick else q * (ws * ps + wt * pt) + 0.5 * q * ((ws - wcs) ** 2 + (wt - wct) ** 2)
+    return fs, ft, j10, j11, j12, j20, j22, 1.0 if stick else 0.0, work, de, dd
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def spring_range(i0, i1, w, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q,
+                 w_out, write):
+    """Sums of :func:`add_spring` over springs i0 <= i < i1 (their committed vectors from ``w`` if ``held``)."""
+    Fs = Ft = J10 = J11 = J12 = J20 = J22 = n_stick = work = stored_change = dissipation = 0.0
+    for i in range(i0, i1):
+        fs, ft, j10, j11, j12, j20, j22, st, wk, de, dd = add_spring(
+            i, w[0, i] if held else 0.0, w[1, i] if held else 0.0, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt,
+            lm, rho, drho, lm_r, can_stick, q, w_out, write)
+        Fs += fs
+        Ft += ft
+        J10 += j10
+        J11 += j11
+        J12 += j12
+        J20 += j20
+        J22 += j22
+        n_stick += st
+        work += wk
+        stored_change += de
+        dissipation += dd
+    return Fs, Ft, J10, J11, J12, J20, J22, n_stick, work, stored_change, dissipation
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, write):
-    """Tangential force, its Jacobian, counts and (``write``) energy of one contact's springs, one by one.
+    """Tangential force, its Jacobian, counts and (commit) energy of one contact's springs.
 
     For a commit and for a fresh contact in a trial (a committed contact in a trial goes through
     :func:`committed_springs`, the same physics without energies, with the springs beyond the
-    stored ones summed in closed form).
-    ``w`` (>= stored, 2): committed springs (ignored when ``fresh``); ``w_out``: scratch for the
-    new springs (``write`` only).  Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs,
-    n_slip, work, d_stored, dissipation), J = d(F_s, F_t)/d(dn, dds, ddt).
-
-    The Coulomb limit of spring i is lam mu rho u_i, with rho = f_n / (2 E* h sum u_i) the
-    ratio of the Hertz force to the springs' own normal force (1 up to the discretisation), so
-    that a contact in full slip carries exactly mu f_n, as the paper law.
+    stored ones summed in closed form).  ``w`` (2, >= stored): committed springs (ignored when
+    ``fresh``); ``w_out`` (2, >= springs in contact): the new springs (``write``: a commit, else the
+    energies are 0).  Compiled through :func:`commit_springs` and :func:`fresh_springs`.  Returns
+    (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip, work, d_stored, dissipation),
+    J = d(F_s, F_t)/d(dn, dds, ddt).
     """
-    inv_R = 1.0 / R
-    c = h * h / R  # x_i²/R = c (i + 1/2)², computed as committed_springs does (the same stick/slip decisions)
+    c = h * h / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    f_n, k_n = hertz(dn, R, E_star)
-    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
-    rho = f_n / (2.0 * E_star * h * sum_u) if sum_u > 0.0 else 1.0
-    # d rho / d dn: zero when h follows the overlap (both forces grow as dn^(3/2)); else d sum u / d dn = n_in
-    drho = 0.0 if scaled or sum_u <= 0.0 else rho * (k_n / f_n - n_in / sum_u)
+    f_n, k_n, n_in, rho, drho = coulomb_scale(dn, dn_c, R, E_star, h, c, scaled)
     lm_r = lm * rho
-    n_store = w.shape[0]
-    Fs = Ft = 0.0
-    J10 = J11 = J12 = J20 = J21 = J22 = 0.0
-    n_springs = n_slip = 0
-    work = stored_change = dissipation = 0.0
+    can_stick = lm != 0.0
     gap = dn - dn_c
-    i = 0
-    while True:
-        x2 = c * (i + 0.5) * (i + 0.5)
-        u = dn - x2
-        if u <= 0.0:
-            break
-        u_c = dn_c - x2
-        g = x2 / dn if scaled else 0.0  # d x_i²/R / d dn: positions scale with a fresh contact
-        # continuing spring: committed vector plus the increment (a spring with memory and u_c <= 0
-        # exists only after coarsening, merged across the contact edge: it keeps its memory)
-        if not fresh and i < n_store and (u_c > 0.0 or w[i, 0] != 0.0 or w[i, 1] != 0.0):
-            wcs, wct = float(w[i, 0]), float(w[i, 1])
-            a = 1.0
-            da = 0.0
-        else:  # entering: in contact for the last fraction of the increment
-            wcs = wct = 0.0
-            if u_c > 0.0:  # already overlapping without memory: the whole increment
-                a = 1.0
-                da = 0.0
-            else:
-                a = u / gap
-                da = ((1.0 - g) * gap - u) / (gap * gap)
-        bs, bt = da * dds, da * ddt
-        ws = wcs + a * dds
-        wt = wct + a * ddt
-        limit = lm_r * u
-        dlim = lm * (rho * (1.0 - g) + u * drho)
-        m2 = ws * ws + wt * wt
-        # mu = 0: the stick region is empty, every spring slides (zero force and tangent)
-        slipping = m2 > limit * limit or lm == 0.0
-        if not slipping:
-            Fs += ws
-            Ft += wt
-            J10 += bs
-            J20 += bt
-            J11 += a
-            J22 += a
-        else:
-            n_slip += 1
-            m = math.sqrt(m2)
-            es, et = (ws / m, wt / m) if m > 0.0 else (0.0, 0.0)
-            ratio = limit / m if m > 0.0 else 0.0
-            # d(limit e)/d(w*) = ratio (I - e e^T); d limit / d dn = dlim
-            P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
-            J10 += P00 * bs + P01 * bt + dlim * es
-            J20 += P01 * bs + P11 * bt + dlim * et
-            J11 += a * P00
-            J12 += a * P01
-            J21 += a * P01
-            J22 += a * P11
-            ws, wt = limit * es, limit * et
-            Fs += ws
-            Ft += wt
-        if write:
-            if i < w_out.shape[0]:
-                w_out[i, 0] = ws
-                w_out[i, 1] = wt
-            dis, dit = a * dds, a * ddt  # displacement this spring took while in contact
-            de = 0.5 * q * (ws * ws + wt * wt - wcs * wcs - wct * wct)
-            if slipping:
-                ps, pt = wcs + dis - ws, wct + dit - wt
-                work += q * (ws * dis + wt * dit)
-                dissipation += q * (ws * ps + wt * pt) + 0.5 * q * ((ws - wcs) ** 2 + (wt - wct) ** 2)
-            else:  # a linear spring: its work is its change of energy
-                work += de
-            stored_change += de
-        n_springs += 1
-        i += 1
+    inv_dn = 1.0 / dn
+    n_mem = 0 if fresh else min(n_in, w.shape[1])
+    # two branch-free loops that LLVM vectorises: stored springs, then springs without memory
+    # (a stored spring with u_c <= 0 has memory only after coarsening, merged across the edge: it keeps it)
+    Fs, Ft, J10, J11, J12, J20, J22, n_stick, work, stored_change, dissipation = spring_range(
+        0, n_mem, w, True, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q, w_out, write)
+    fs, ft, j10, j11, j12, j20, j22, st, wk, de, dd = spring_range(
+        n_mem, n_in, w, False, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q, w_out,
+        write)
+    Fs, Ft, J10, J11, J12, J20, J22 = Fs + fs, Ft + ft, J10 + j10, J11 + j11, J12 + j12, J20 + j20, J22 + j22
+    n_stick, work, stored_change, dissipation = n_stick + st, work + wk, stored_change + de, dissipation + dd
     if write and not fresh:
-        wk, de, dd = release(w, i, dn, dn_c, h, inv_R, dds, ddt, q)
+        wk, de, dd = release(w, n_in, dn, dn_c, c, dds, ddt, q)
         work += wk
         stored_change += de
         dissipation += dd
     Fs *= q
     Ft *= q
-    J10, J11, J12, J20, J21, J22 = q * J10, q * J11, q * J12, q * J20, q * J21, q * J22
+    J10, J11, J12, J20, J22 = q * J10, q * J11, q * J12, q * J20, q * J22
     if scaled:  # q and the positions follow the overlap of a fresh contact: dq/d dn = q/(2 dn)
-        J10 += 0.5 * Fs / dn
-        J20 += 0.5 * Ft / dn
-    return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, work, stored_change, dissipation
+        J10 += 0.5 * Fs * inv_dn
+        J20 += 0.5 * Ft * inv_dn
+    return Fs, Ft, J10, J11, J12, J20, J12, J22, n_in, n_in - int(n_stick), work, stored_change, dissipation
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
 def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     """:func:`springs` of a committed contact in a trial, without energy or scratch: the hot loop of a run.
 
-    The springs in contact (count and sum of u_i in closed form) are visited once, in storage
-    order; those beyond the stored ones enter in this increment and are summed in closed form.
+    The stored springs in contact are visited once, in storage order (w: (2, stored), one
+    contiguous row per component, so the loop vectorises); those beyond the stored ones enter
+    in this increment and are summed in closed form.
     Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip).
     """
     c = h * h / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    f_n, k_n = hertz(dn, R, E_star)
-    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
-    rho = f_n / (2.0 * E_star * h * sum_u) if sum_u > 0.0 else 1.0
-    drho = rho * (k_n / f_n - n_in / sum_u) if sum_u > 0.0 else 0.0
+    f_n, k_n, n_in, rho, drho = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
     lm_r = lm * rho
     can_stick = lm != 0.0
     gap = dn - dn_c
-    n_store = w.shape[0]
-    Fs = Ft = J10 = J11 = J12 = J20 = J21 = J22 = 0.0
-    n_slip = 0
-    inv_gap = 1.0 / gap
-    inv_gap2 = inv_gap * inv_gap
+    n_store = w.shape[1]
+    Fs = Ft = J10 = J11 = J12 = J20 = J22 = 0.0
+    n_stick = 0
     dlim0, dlim1 = lm * rho, lm * drho
-    n_stick = 0.0
-    # branch-free (selects) so that LLVM vectorises the loop over the springs
-    for i in range(min(n_in, n_store)):
-        x2 = c * (i + 0.5) * (i + 0.5)
-        u = dn - x2
-        u_c = dn_c - x2
-        w0, w1 = float(w[i, 0]), float(w[i, 1])
-        memory = (u_c > 0.0) | (w0 != 0.0) | (w1 != 0.0)  # else entering in this increment
-        a = 1.0 if memory else u * inv_gap
-        da = 0.0 if memory else -u_c * inv_gap2
-        ws, wt = w0 + a * dds, w1 + a * ddt
-        limit = lm_r * u
-        m2 = ws * ws + wt * wt
-        stick = can_stick & (m2 <= limit * limit)
-        mm = fsqrt(m2)
-        inv_m = 1.0 / mm if mm > 0.0 else 0.0
-        es, et = ws * inv_m, wt * inv_m
-        ratio = limit * inv_m
-        P00, P01, P11 = ratio * (1.0 - es * es), -ratio * es * et, ratio * (1.0 - et * et)
-        dlim = dlim0 + u * dlim1
-        bs, bt = da * dds, da * ddt
-        Fs += ws if stick else limit * es
-        Ft += wt if stick else limit * et
-        J10 += bs if stick else P00 * bs + P01 * bt + dlim * es
-        J20 += bt if stick else P01 * bs + P11 * bt + dlim * et
-        J11 += a if stick else a * P00
-        J12 += 0.0 if stick else a * P01
-        J21 += 0.0 if stick else a * P01
-        J22 += a if stick else a * P11
-        n_stick += 1.0 if stick else 0.0
-    n_slip = min(n_in, n_store) - int(n_stick)
+    n_held = min(n_in, n_store)
+    for i in range(min((n_held + LANES - 1) // LANES * LANES, n_store)):  # whole vectors: no scalar remainder
+        x2 = spring_x2(c, i)
+        u, u_c = dn - x2, dn_c - x2
+        wcs, wct = float(w[0, i]), float(w[1, i])
+        memory = (u_c > 0.0) | (wcs != 0.0) | (wct != 0.0)
+        _, _, stick, _, fs, ft, j10, j11, j12, j20, j22 = spring_step(wcs, wct, memory, u, u_c, 0.0, gap, dds, ddt,
+                                                                      lm_r, dlim0 + u * dlim1, can_stick)
+        inc = i < n_held  # padding springs add nothing
+        Fs += fs if inc else 0.0
+        Ft += ft if inc else 0.0
+        J10 += j10 if inc else 0.0
+        J11 += j11 if inc else 0.0
+        J12 += j12 if inc else 0.0
+        J20 += j20 if inc else 0.0
+        J22 += j22 if inc else 0.0
+        n_stick += 1 if stick & inc else 0
+    n_slip = min(n_in, n_store) - n_stick
     m = n_in - n_store
     if m > 0:  # every entering spring takes u_i / gap of the increment: all stick or all slip together
         _, tail_u, tail_uc = entering_tail(n_store, dn, dn_c, c)
@@ -253,25 +277,25 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
             J20 += P01 * bs + P11 * bt + dlim_sum * et
             J11 += tail_u / gap * P00
             J12 += tail_u / gap * P01
-            J21 += tail_u / gap * P01
             J22 += tail_u / gap * P11
             Fs += lm_r * tail_u * es
             Ft += lm_r * tail_u * et
-    return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J21, q * J22, n_in, n_slip
+    return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J12, q * J22, n_in, n_slip
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def entering_tail(i0, dn, dn_c, c):
     """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
 
     Springs beyond the stored ones enter contact in this increment: each takes the same part
     u_i / (dn - dn_c) of it and they all stick or all slip together, so their sums need only
-    these three numbers (the cost of a trial does not grow with the overlap).
+    these three numbers (the cost of a trial does not grow with the overlap).  The count uses
+    :func:`spring_x2`, so it is the number of springs the loops find in contact.
     """
-    N = int(math.sqrt(dn / c) + 0.5)  # springs i < N have (i + 1/2)² c < dn
-    while dn - c * (N + 0.5) ** 2 > 0.0:
+    N = int(fsqrt(dn / c) + 0.5)  # springs i < N have (i + 1/2)² c < dn
+    while dn - spring_x2(c, N) > 0.0:
         N += 1
-    while N > i0 and dn - c * (N - 0.5) ** 2 <= 0.0:
+    while N > i0 and dn - spring_x2(c, N - 1) <= 0.0:
         N -= 1
     m = N - i0
     if m <= 0:
@@ -280,26 +304,25 @@ def entering_tail(i0, dn, dn_c, c):
     return m, m * dn - c * sq, c * sq - m * dn_c
 
 
-@numba.njit(cache=True, inline="always")
-def release(w, start, dn, dn_c, h, inv_R, dds, ddt, q):
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def release(w, start, dn, dn_c, c, dds, ddt, q):
     """Work, change of stored energy and dissipation of the stored springs start.. leaving contact.
 
     A spring in contact for the first fraction f = u^c/(u^c - u) of the increment follows it
     elastically to w* = w^c + f dδ; as its limit vanishes at the exit it slides to zero,
-    dissipating ½ q |w*|².  Under proportional unloading w* = 0.
+    dissipating ½ q |w*|².  Under proportional unloading w* = 0.  (Springs without memory add 0.)
     """
     work = stored_change = dissipation = 0.0
-    for jj in range(start, w.shape[0]):
-        wcs, wct = float(w[jj, 0]), float(w[jj, 1])
-        if wcs == 0.0 and wct == 0.0:
-            continue
-        x2 = ((jj + 0.5) * h) ** 2 * inv_R
+    for jj in range(start, w.shape[1]):
+        wcs, wct = float(w[0, jj]), float(w[1, jj])
+        x2 = spring_x2(c, jj)
         u_c, u = dn_c - x2, dn - x2
-        f = u_c / (u_c - u) if u_c > 0.0 and u < u_c else 0.0
+        f = u_c / (u_c - u) if (u_c > 0.0) & (u < u_c) else 0.0
         es, et = wcs + f * dds, wct + f * ddt
-        work += 0.5 * q * ((wcs + es) * f * dds + (wct + et) * f * ddt)
+        held = (wcs != 0.0) | (wct != 0.0)
+        work += 0.5 * q * ((wcs + es) * f * dds + (wct + et) * f * ddt) if held else 0.0
         stored_change -= 0.5 * q * (wcs * wcs + wct * wct)
-        dissipation += 0.5 * q * (es * es + et * et)
+        dissipation += 0.5 * q * (es * es + et * et) if held else 0.0
     return work, stored_change, dissipation
 
 
@@ -310,9 +333,9 @@ def state_code(n_springs, n_slip):
     return FULL_SLIP if n_slip == n_springs else PARTIAL
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
 def fresh_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled):
-    """:func:`springs` of a contact without history in a trial."""
+    """:func:`springs` of a contact without history in a trial (``w`` any spring row, unused)."""
     Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, _, _, _ = springs(
         dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, True, w, False)
     return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip
@@ -335,9 +358,15 @@ def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     return (f_n, Fs, Ft, k_n, 0.0, 0.0, J10, J11, J12, J20, J21, J22, float(state_code(n_springs, n_slip)))
 
 
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out):
+    """:func:`springs` of a commit: writes the new springs to ``w_out`` and returns the energies."""
+    return springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, True)
+
+
 @numba.njit(cache=True)
 def merge_pairs(w, n):
-    """Coarsen n springs to ceil(n/2) by merging neighbours (spacing doubles), in place.
+    """Coarsen n springs to ceil(n/2) by merging neighbours (spacing doubles), in place; w: (2, >= n).
 
     The merged vector is the mean of the pair, so the force (2E*/lam)(2h) sum w is kept;
     returns the stored energy lost per unit q, ½ sum |w_a - w_b|² / 2 (counted as dissipation).
@@ -345,17 +374,17 @@ def merge_pairs(w, n):
     lost = 0.0
     m = (n + 1) // 2
     for j in range(m):
-        a0, a1 = w[2 * j, 0], w[2 * j, 1]
+        a0, a1 = w[0, 2 * j], w[1, 2 * j]
         if 2 * j + 1 < n:
-            b0, b1 = w[2 * j + 1, 0], w[2 * j + 1, 1]
+            b0, b1 = w[0, 2 * j + 1], w[1, 2 * j + 1]
         else:
             b0 = b1 = 0.0
         lost += 0.25 * ((a0 - b0) ** 2 + (a1 - b1) ** 2)
-        w[j, 0] = 0.5 * (a0 + b0)
-        w[j, 1] = 0.5 * (a1 + b1)
+        w[0, j] = 0.5 * (a0 + b0)
+        w[1, j] = 0.5 * (a1 + b1)
     for j in range(m, n):
-        w[j, 0] = 0.0
-        w[j, 1] = 0.0
+        w[0, j] = 0.0
+        w[1, j] = 0.0
     return lost
 
 
@@ -365,26 +394,25 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
 
     dn <= 0: the contact is lost, its springs are released and its memory erased.  Energies
     [J] include the Hertz normal spring; ``stored`` is the contact's energy after the increment.
+    ``scratch``: (2, 2 stored) floats for the new springs (a larger buffer is made when needed).
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
     w = w_all[sl]
-    n_store = w.shape[0]
+    n_store = w.shape[1]
     q_unit = 2.0 * E_star / lam
     e_old = 0.0 if fresh else hertz_energy(dn_c, R, E_star)
     if dn <= 0.0:
         h = h_all[sl]
-        wk, _, dd = release(w, 0, dn, dn_c, h, 1.0 / R, dds, ddt, q_unit * h)
-        for i in range(n_store):
-            w[i, 0] = 0.0
-            w[i, 1] = 0.0
+        wk, _, dd = release(w, 0, dn, dn_c, h * h / R, dds, ddt, q_unit * h)
+        w[:, :] = 0.0
         h_all[sl] = 0.0
         return 0, wk - e_old, 0.0, dd, 0
     h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[sl])
-    n_need = int(math.sqrt(R * dn) / h + 0.5) + 2
-    buf = scratch if n_need <= scratch.shape[0] else np.zeros((n_need, 2))
-    _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = springs(
-        dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf, True)
+    n_need = entering_tail(0, dn, dn_c, h * h / R)[0]
+    buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
+    _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs(
+        dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
     code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
     coarsenings = 0
     while n_springs > n_store:  # coarsen: the contact outgrew its springs
@@ -394,9 +422,9 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
         coarsenings += 1
     stored = 0.0
     for i in range(n_store):
-        a, b = (buf[i, 0], buf[i, 1]) if i < n_springs else (0.0, 0.0)
-        w[i, 0] = a
-        w[i, 1] = b
+        a, b = (buf[0, i], buf[1, i]) if i < n_springs else (0.0, 0.0)
+        w[0, i] = a
+        w[1, i] = b
         stored += a * a + b * b
     h_all[sl] = h
     e_new = hertz_energy(dn, R, E_star)
@@ -404,8 +432,9 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
 
 
 def arrays(capacity, k, dtype):
-    """Per-slot state: springs w (capacity, 2k, 2) of ``dtype`` and spacing h (capacity,) [m]."""
-    return np.zeros((capacity, 2 * k, 2), dtype=dtype), np.zeros(capacity)
+    """Per-slot state: springs w (capacity, 2, 2k) of ``dtype`` (the s row, then the t row: each contiguous,
+    so the spring loops vectorise) and spacing h (capacity,) [m]."""
+    return np.zeros((capacity, 2, 2 * k), dtype=dtype), np.zeros(capacity)
 
 
 def validate(arrays, live):
