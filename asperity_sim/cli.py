@@ -500,6 +500,14 @@ def cmd_info(args) -> int:
     return 0
 
 
+def _run_wall_time(attrs):
+    """Wall-clock seconds of a run's increment loop: ``wall_time_increment_loop_s``, or ``wall_time_s`` in older files."""
+    for key in ("wall_time_increment_loop_s", "wall_time_s"):
+        if key in attrs:
+            return float(attrs[key])
+    return None
+
+
 def _params_lines(attrs):
     from .params import InterfaceParams
     from .scene import format_quantity
@@ -536,7 +544,7 @@ def info_text(ds, path) -> str:
     it, cuts, res = ds["iterations"].values[1:], ds["cutbacks"].values[1:], ds["residual"].values[1:]
     steps = ds.sizes["step"] - 1
     lines.append(f"steps: {steps} converged increments over {int(ds['stage'].values.max())} stage(s)"
-                 + (f", wall time {float(a['wall_time_s']):.2f} s" if "wall_time_s" in a else ""))
+                 + (f", wall time {wall:.2f} s (increment loop)" if (wall := _run_wall_time(a)) is not None else ""))
     if steps:
         lines.append(f"convergence: Newton iterations total {int(it.sum())}, mean {it.mean():.2f}, max {int(it.max())};"
                      f" cut-backs {int(cuts.sum())}; largest final residual {res.max():.2g}")

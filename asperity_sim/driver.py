@@ -38,7 +38,7 @@ from .assemble import (CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH,
 from .params import InterfaceParams, check_real
 from .paths import LoadPath, Stage
 from .population import N_MAX, SAMPLERS, Population
-from .recorder import Recorder, run_attributes
+from .recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
 from .domain import DomainMonitor, LawDomainWarning
 from .errors import (ConvergenceError, OutputWriteError, SimulationError, StressNotReachableError,  # noqa: F401
@@ -562,7 +562,9 @@ class _Run:
             raise
         finally:
             wall = self.wall_before + time.perf_counter() - t0
-            attrs["wall_time_s"] = wall
+            attrs.pop("wall_time_s", None)  # its earlier, ambiguous name (carried by older checkpoints)
+            attrs["wall_time_increment_loop_s"] = wall
+            attrs["wall_time_increment_loop_s_description"] = WALL_TIME_DESCRIPTION
             if failure is not None:
                 attrs["status"] = f"failed: {type(failure).__name__}: {failure}"
             elif interrupted is not None:
@@ -574,7 +576,7 @@ class _Run:
                     self.save_checkpoint(checkpoint, checkpoint_every, wall)
                 except Exception as err:  # noqa: BLE001 - never hide the interruption itself
                     warnings.warn(f"could not write the checkpoint of the interrupted run: {err}", stacklevel=2)
-            ds_out = rec.to_dataset(attrs, population=self.pop)
+            ds_out = rec.to_dataset(attrs, population=self.pop, stage_names=[s.name for s in path.stages])
             if failure is not None:
                 failure.dataset = ds_out
             if output is not None:

@@ -342,7 +342,7 @@ def write_products(ds: xr.Dataset, output) -> dict:
 def _errorbar(ax, x, ds, name, scale, label, **kw):
     y = ds[f"{name}_mean"].values * scale
     se = np.nan_to_num(ds[f"{name}_sem"].values) * scale
-    return ax.errorbar(x, y, yerr=2 * se, fmt="o-", capsize=3, ms=4, label=label, **kw)
+    return ax.errorbar(x, y, yerr=2 * se, fmt="o-", capsize=3, ms=4, label=f"{label} (bars ±2 SE)", **kw)
 
 
 def plot_envelope(ds: xr.Dataset):

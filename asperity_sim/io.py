@@ -18,7 +18,14 @@ from .params import InterfaceParams
 
 
 def write_netcdf(ds: xr.Dataset, path) -> Path:
-    """Write ``ds`` to ``path`` with engine netcdf4 and compression, atomically."""
+    """Write ``ds`` to ``path`` with engine netcdf4 and compression, atomically.
+
+    Each value with a standard error in ``ds`` (``x`` and ``x_stderr``, ``x_mean`` and ``x_sem``)
+    names it in its CF attribute ``ancillary_variables`` in the file (``ds`` itself is not changed).
+    """
+    from .recorder import link_standard_errors
+
+    ds = link_standard_errors(ds.copy(deep=False))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}

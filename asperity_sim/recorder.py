@@ -1,7 +1,8 @@
 """Per-step recording into preallocated buffers, and the xarray Dataset built from them.
 
 Owns the shape of the output: variables come only from :mod:`asperity_sim.variables`,
-so each carries ``units`` and ``long_name``.  Global attributes record every parameter,
+so each carries ``units`` and ``long_name``; a value with a standard error names it in
+``ancillary_variables`` (CF), and ``stage_name`` labels each step with its stage's name.  Global attributes record every parameter,
 the sampling, the law, the policy, the load path and the package version.
 """
 
@@ -13,11 +14,23 @@ import functools
 import numpy as np
 import xarray as xr
 
-from .variables import ASPERITY_VARIABLES, COORDS, SNAPSHOT_VARIABLES, STEP_VARIABLES
+from .variables import (
+    ASPERITY_VARIABLES,
+    COORDS,
+    INITIAL_STAGE_NAME,
+    LABEL_VARIABLES,
+    SNAPSHOT_VARIABLES,
+    STEP_VARIABLES,
+    standard_error_links,
+)
 
 PAPER = ("Misra, A. and Huang, S.: Micromechanical stress-displacement model for rough interfaces: "
          "effect of asperity contact orientation on closure and shear behavior")
 
+
+WALL_TIME_DESCRIPTION = (
+    "wall-clock time [s] of the increment loop of simulate (solving, committing and recording the increments), "
+    "summed over the parts of a resumed run; sampling the population and writing the file are not included")
 
 _SIZES = {"axis": 3, "axis_k": 3, "from_state": 4, "to_state": 4}
 
@@ -68,15 +81,37 @@ class Recorder:
     def add_snapshot(self, step, arrays):
         self.snapshots.append((step, arrays))
 
-    def to_dataset(self, attrs: dict, population=None) -> xr.Dataset:
+    def to_dataset(self, attrs: dict, population=None, stage_names=None) -> xr.Dataset:
+        """The Dataset of the recorded steps; ``stage_names`` (the names of the path's stages, in
+        order) adds ``stage_name``, each step's stage name."""
         n = self.size
         data = {name: self._buf[name][:n].copy() for name in self._vars}
         if self.snapshots and population is not None:
             ds = _build(self._vars, data, _snapshot_vars(self.snapshots, population))
         else:  # the common case: a copy of the cached empty Dataset of this shape, with the data swapped in
             ds = _template(tuple(self._vars.items()), n).copy(deep=False, data=data)
+        if stage_names is not None:
+            add_stage_names(ds, stage_names)
         ds.attrs = attrs
         return ds
+
+
+def add_stage_names(ds, stage_names) -> None:
+    """Add ``stage_name`` (step): the name of each step's stage (``stage`` 0: the initial state)."""
+    names = np.array([INITIAL_STAGE_NAME, *(str(s) for s in stage_names)], dtype=object)
+    stage = ds["stage"].values
+    if stage.size and (stage.min() < 0 or stage.max() >= names.size):
+        raise ValueError(f"stage index {int(stage.max())} is out of range (valid range: 0 to {names.size - 1})")
+    var = LABEL_VARIABLES["stage_name"]
+    ds["stage_name"] = (var.dims, names[stage].astype(str), _attrs(var))
+
+
+def link_standard_errors(ds) -> xr.Dataset:
+    """Set the CF attribute ``ancillary_variables`` of each value that has a standard error in ``ds``
+    (``x`` -> ``x_stderr``, ``x_mean`` -> ``x_sem``); returns ``ds``."""
+    for value, stderr in standard_error_links(ds.data_vars).items():
+        ds[value].attrs["ancillary_variables"] = stderr
+    return ds
 
 
 def _build(variables, data, extra=None) -> xr.Dataset:
@@ -92,7 +127,7 @@ def _build(variables, data, extra=None) -> xr.Dataset:
     if "transitions" in variables:
         for dim in ("from_state", "to_state"):
             coords[dim] = (dim, np.arange(4, dtype="i4"), _attrs(COORDS[dim]))
-    ds = xr.Dataset(data_vars, coords=coords)
+    ds = link_standard_errors(xr.Dataset(data_vars, coords=coords))
     ds["control"].attrs.update(flag_values=np.array([0, 1], dtype="i1"), flag_meanings="displacement stress")
     return ds
 

@@ -751,7 +751,7 @@ def plot_sweep(ds: xr.Dataset):
     Abscissa: path length of the mean displacement [um]; one colour per grid point.
     (Lives here rather than in :mod:`asperity_sim.plotting`, which does not know sweeps yet.)
     """
-    from .plotting import BAND, MPA, UM, plt
+    from .plotting import BAND, MARK, MPA, UM, band_legend, plt
 
     grid = [d for d in ds["stress"].dims if d not in ("replica", "step", "axis")]
     stacked = ds.stack(point=grid) if grid else ds.expand_dims(point=[0])
@@ -774,25 +774,28 @@ def plot_sweep(ds: xr.Dataset):
             if np.nanmax(np.abs(s), initial=0.0) == 0.0:
                 continue
             se = np.nan_to_num(p["stress_sem"].sel(axis=k).values)
-            axes[0, 0].plot(x, s * MPA, styles[k], color=color, label=rf"$\sigma_{k}$, {label}")
+            axes[0, 0].plot(x, s * MPA, styles[k], color=color, label=rf"$\sigma_{k}$, {label}", **MARK)
             axes[0, 0].fill_between(x, (s - BAND * se) * MPA, (s + BAND * se) * MPA, color=color, alpha=0.2, lw=0)
             dk = p["displacement_mean"].sel(axis=k).values
             dse = np.nan_to_num(p["displacement_sem"].sel(axis=k).values)
-            axes[1, 0].plot(x, dk * UM, styles[k], color=color, label=rf"$\Delta_{k}$, {label}")
+            axes[1, 0].plot(x, dk * UM, styles[k], color=color, label=rf"$\Delta_{k}$, {label}", **MARK)
             axes[1, 0].fill_between(x, (dk - BAND * dse) * UM, (dk + BAND * dse) * UM, color=color, alpha=0.2, lw=0)
         s = p["stress_mean"].values
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(s[:, 0] > 0, np.hypot(s[:, 1], s[:, 2]) / s[:, 0], np.nan)
-        axes[0, 1].plot(x, ratio, color=color, label=label)
-        axes[1, 1].plot(x, p["n_contact_mean"].values / n, "-", color=color, label=f"in contact, {label}")
-        axes[1, 1].plot(x, p["n_slip_mean"].values / n, "--", color=color, label=f"full slip, {label}")
+        axes[0, 1].plot(x, ratio, color=color, label=label, **MARK)
+        axes[1, 1].plot(x, p["n_contact_mean"].values / n, "-", color=color, label=f"in contact, {label}", **MARK)
+        axes[1, 1].plot(x, p["n_slip_mean"].values / n, "--", color=color, label=f"full slip, {label}", **MARK)
     axes[0, 0].set_ylabel("interface stress [MPa] (ensemble mean ± 2 s.e.)")
     axes[0, 1].set_ylabel(r"shear resistance $|\sigma_{23}|/\sigma_1$ [1]")
     axes[1, 0].set_ylabel("interface displacement [µm] (ensemble mean ± 2 s.e.)")
     axes[1, 1].set_ylabel("fraction of the population [1]")
     for ax in axes.ravel():
         ax.set_xlabel(r"path length of the mean displacement $\int|d\Delta|$ [µm]")
-        ax.legend(fontsize=7)
+        if ax in (axes[0, 0], axes[1, 0]):
+            band_legend(ax, fontsize=7)
+        else:
+            ax.legend(fontsize=7)
     fig.suptitle(f"{ds.attrs.get('title', 'asperity_sim sweep')}\n{ds.attrs.get('replicas')} replica(s) per point; "
                  "bands: ±2 standard errors of the ensemble mean")
     fig.tight_layout()

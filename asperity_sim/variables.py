@@ -1,7 +1,8 @@
 """Registry of output variables: name -> dims, dtype, units, long name.
 
 The recorder builds datasets only from this table, so every variable written has CF
-``units`` and a ``long_name`` (a test checks it).
+``units`` and a ``long_name`` (a test checks it).  A value with a Monte Carlo standard error
+``<name>_stderr`` names it in its CF attribute ``ancillary_variables`` (:func:`standard_error_links`).
 """
 
 from __future__ import annotations
@@ -48,6 +49,12 @@ HISTORY_VARIABLES = {  # recorded for history laws only
                        "asperities changing contact state in the increment (0 out, 1 stick, 2 partial slip, 3 full slip)"),
 }
 
+LABEL_VARIABLES = {  # per-step labels (strings), written with the step variables
+    "stage_name": Var(("step",), "U", "1",  # numpy str, as long as its longest value (so it reads back the same)
+                      "name of the stage of the load path the step belongs to (step 0: initial state; "
+                      "empty: an unnamed stage)"),
+}
+
 DOMAIN_VARIABLES = {  # recorded for path-independent laws only (asperity_sim.domain)
     "law_domain": Var(("step",), "i1", "1",
                       "steps outside the law's domain (bits: 1 shear reversal or turn, 2 normal stress change during "
@@ -81,7 +88,7 @@ COORDS = {
     "axis_k": Var(("axis_k",), "i4", "1", "displacement component of the tangent"),
 }
 
-ALL_VARIABLES = {**STEP_VARIABLES, **HISTORY_VARIABLES, **LAW_EVENT_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
+ALL_VARIABLES = {**STEP_VARIABLES, **LABEL_VARIABLES, **HISTORY_VARIABLES, **LAW_EVENT_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
 
 PROPERTY_VARIABLES = {  # derived joint properties (asperity_sim.properties, asperity_sim.envelope); dims:
     # "point" stands for the grid and replica dimensions of the sweep they come from
@@ -121,3 +128,20 @@ PROPERTY_VARIABLES = {  # derived joint properties (asperity_sim.properties, asp
 }
 
 ALL_VARIABLES = {**ALL_VARIABLES, **PROPERTY_VARIABLES}
+
+
+INITIAL_STAGE_NAME = "initial state"  # stage_name of step 0
+
+
+def standard_error_links(names) -> dict:
+    """{value: its standard error} for the variable names given: ``x`` -> ``x_stderr`` (runs) and
+    ``x_mean`` -> ``x_sem`` (replica means of sweeps), where both are present; CF links them with
+    the attribute ``ancillary_variables`` of the value."""
+    names = set(names)
+    links = {}
+    for name in names:
+        if name.endswith("_stderr") and name[: -len("_stderr")] in names:
+            links[name[: -len("_stderr")]] = name
+        elif name.endswith("_sem") and name[: -len("_sem")] + "_mean" in names:
+            links[name[: -len("_sem")] + "_mean"] = name
+    return links

@@ -1,7 +1,7 @@
-"""MkDocs hook: the figures of the documentation are the files in ``outputs/``.
+"""MkDocs hook: unit brackets in docstrings are not cross-references.
 
-Pages link to figures as ``../outputs/NAME.png`` (so they also show on the repository's web
-view); the site copies each figure to ``figures/NAME.png`` and rewrites the links.
+(The figures of the pages are the files in ``docs/results/``, linked as ``results/NAME.png``:
+they are part of the site as they are, and also show on the repository's web view.)
 
 Docstrings give units in brackets (``r : ndarray [m]``, ``E[sqrt R] [m^0.5]``); Markdown reads
 ``[a] [m]`` as a reference link and mkdocs-autorefs warns that it cannot find the target ``m``.
@@ -13,12 +13,7 @@ from __future__ import annotations
 
 import logging
 import re
-from pathlib import Path
 
-from mkdocs.structure.files import File
-
-_LINK = re.compile(r"\]\(\.\./outputs/([^)\s]+\.(?:png|svg|jpg))\)")
-_ROOT = Path(__file__).resolve().parent.parent
 _UNIT = r"(?:[a-zA-Zµ]{1,3}(?:\^?-?[0-9.]+)?|1)"
 _UNIT_TARGET = re.compile(rf"Could not find cross-reference target '{_UNIT}(?:[ /*]{_UNIT})*'")
 
@@ -33,15 +28,3 @@ def on_config(config):
         if not any(isinstance(f, _UnitBrackets) for f in handler.filters):
             handler.addFilter(_UnitBrackets())
     return config
-
-
-def on_files(files, config):
-    for fig in sorted((_ROOT / "outputs").glob("*.png")):
-        files.append(File.generated(config, f"figures/{fig.name}", abs_src_path=str(fig)))
-    return files
-
-
-def on_page_markdown(markdown, page, config, files):
-    depth = page.file.src_uri.count("/")
-    prefix = "../" * depth
-    return _LINK.sub(lambda m: f"]({prefix}figures/{m.group(1)})", markdown)

@@ -16,6 +16,7 @@ from asperity_sim import variables as v  # noqa: E402
 
 GROUPS = [
     ("Every run, per step", "STEP_VARIABLES", "Written by `simulate` and `asperity-sim run` for every law."),
+    ("Per-step labels", "LABEL_VARIABLES", "Written with the step variables: the name of each step's stage."),
     ("History laws only", "HISTORY_VARIABLES", "Written when the law keeps per-contact history (`mdr`)."),
     ("Law events", "LAW_EVENT_VARIABLES", "The per-step event count a history law declares (`mdr`: coarsenings)."),
     ("Path-independent laws only", "DOMAIN_VARIABLES",

@@ -123,7 +123,7 @@ def plot_summary(env_files: dict, cyc_files: dict):
         ax.set_xlabel("shear amplitude a [µm] (sigma_n = 300 MPa, second cycle)")
         ax.set_xscale("log")
     for ax in axes.ravel():
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, title="bars: ±2 SE over replicas", title_fontsize=7)
     fig.suptitle("joint properties of R1 and S1, laws paper and mdr (mean ± 2 s.e. over replicas)", fontsize=10)
     fig.tight_layout()
     return fig

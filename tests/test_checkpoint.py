@@ -27,7 +27,7 @@ from asperity_sim import checkpoint as ckpt
 from asperity_sim.io import read_netcdf, write_netcdf
 from asperity_sim.paths import LoadPath, Stage
 
-VOLATILE = {"wall_time_s", "history", "date_created"}  # differ between any two runs
+VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}  # differ between any two runs
 
 
 def mixed_path(inc=4):

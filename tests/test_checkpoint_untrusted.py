@@ -34,7 +34,7 @@ from asperity_sim import CheckpointError, presets, simulate
 from asperity_sim import checkpoint as ckpt
 from asperity_sim.paths import LoadPath, Stage
 
-VOLATILE = {"wall_time_s", "history", "date_created"}
+VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}
 N = 200
 
 

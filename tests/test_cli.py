@@ -183,7 +183,7 @@ def test_console_entry_point_in_a_subprocess(tmp_path):
 
 # --------------------------------------------------------------------------- issue 24, item 5
 
-VOLATILE = {"wall_time_s", "history", "date_created", "scene_file", "scene"}
+VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created", "scene_file", "scene"}
 
 
 def _same_data(a, b, skip=()):
@@ -451,3 +451,25 @@ def test_ctrl_c_keeps_what_converged_with_the_scene_provenance(tmp_path, monkeyp
     full = tmp_path / "full.nc"
     assert cli.main(["run", str(scene), "-o", str(full)]) == 0
     _same_data(read_netcdf(full), read_netcdf(out))
+
+
+def test_info_reads_the_wall_time_of_new_and_older_files(tmp_path, capsys):
+    """Files written before the rename carry ``wall_time_s``; ``info`` reads both names."""
+    from asperity_sim.io import write_netcdf
+
+    scene = Path(__file__).resolve().parent.parent / "scenarios" / "three_step_S1.toml"
+    out = tmp_path / "new.nc"
+    assert cli.main(["run", str(scene), "--n", "300", "-o", str(out)]) == 0
+    capsys.readouterr()
+    ds = read_netcdf(out)
+    assert "wall_time_s" not in ds.attrs
+    assert cli.main(["info", str(out)]) == 0
+    new = capsys.readouterr().out
+    assert f"wall time {ds.attrs['wall_time_increment_loop_s']:.2f} s" in new
+    old = ds.copy()
+    old.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("wall_time_increment_loop_s")}
+    old.attrs["wall_time_s"] = 12.345
+    write_netcdf(old, tmp_path / "old.nc")
+    assert cli.main(["info", str(tmp_path / "old.nc")]) == 0
+    assert "wall time 12.35 s" in capsys.readouterr().out
+    assert cli.main(["plot", str(tmp_path / "old.nc")]) == 0

@@ -57,3 +57,79 @@ def test_version_is_the_same_everywhere_and_in_the_changelog():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
     assert project["version"] == asperity_sim.__version__
     assert f"## {asperity_sim.__version__} " in (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+
+
+# --------------------------------------------------------------------------- generated files and reference results
+
+RESULTS = DOCS / "results"
+
+
+def _reference_results():
+    spec = importlib.util.spec_from_file_location("reference_results", ROOT / "studies" / "reference_results.py")
+    mod = importlib.util.module_from_spec(spec)
+    import sys
+
+    sys.modules[spec.name] = mod  # its dataclass looks its module up there
+    try:
+        spec.loader.exec_module(mod)
+    finally:
+        del sys.modules[spec.name]
+    return mod
+
+
+def test_docs_results_holds_exactly_what_the_regenerating_command_lists():
+    """docs/results/ = the files the tasks of studies/reference_results.py copy there + the kept records."""
+    mod = _reference_results()
+    listed = {f for task in mod.TASKS.values() for f in task.keep} | set(mod.RECORDS) | {"README.md"}
+    present = {p.name for p in RESULTS.iterdir()}
+    assert present == listed, (f"in docs/results but not listed: {sorted(present - listed)}; "
+                               f"listed but missing: {sorted(listed - present)}")
+    overview = (RESULTS / "README.md").read_text(encoding="utf-8")
+    for name in mod.TASKS:
+        assert f"`{name}`" in overview, f"docs/results/README.md does not describe the task {name}"
+
+
+def _mentions():
+    """(page, target) for every link or path of the docs into docs/results/ or outputs/ (figures alike)."""
+    import re
+
+    pages = [ROOT / "README.md"] + sorted(p for p in DOCS.glob("*.md"))
+    pattern = re.compile(r"\]\((?:\.\./)?((?:docs/)?results/[^)\s#]+|(?:\.\./)?outputs/[^)\s#]+)\)"
+                         r"|`((?:docs/)?results/[A-Za-z0-9_.]+)`")
+    for page in pages:
+        for m in pattern.finditer(page.read_text(encoding="utf-8")):
+            yield page, m.group(1) or m.group(2)
+
+
+def test_every_reference_the_docs_make_into_docs_results_exists():
+    seen = 0
+    for page, target in _mentions():
+        if "NAME" in target:  # a placeholder (development.md: how to link a figure)
+            continue
+        assert not target.lstrip("./").startswith("outputs/"), \
+            f"{page.name} links {target}: outputs/ is not tracked, link docs/results/ instead"
+        base = ROOT if page.name == "README.md" or target.startswith("docs/") else DOCS
+        assert (base / target).is_file(), f"{page.name} refers to {target}, which does not exist"
+        seen += 1
+    assert seen >= 10  # the figures of the validation page alone
+
+
+def test_outputs_is_ignored_by_git_except_its_readme():
+    import shutil
+    import subprocess
+
+    import pytest
+
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+
+    def ignored(path):
+        r = subprocess.run(["git", "check-ignore", "-q", "--no-index", path], cwd=ROOT)
+        assert r.returncode in (0, 1), r
+        return r.returncode == 0
+
+    for generated in ("outputs/three_step_R1.nc", "outputs/convergence.png", "outputs/run.log",
+                      "outputs/checkpoints/run.npz", "outputs/reference_results/paper/three_step.png"):
+        assert ignored(generated), generated
+    for kept in ("outputs/README.md", "docs/results/three_step.png", "docs/results/stability.md"):
+        assert not ignored(kept), kept
