@@ -9,26 +9,20 @@ a file) and :func:`restore` (a file to the state a run continues from), plus :fu
 
 The layout (format :data:`~asperity_sim.checkpoint.FORMAT`; n asperities, T recorded steps):
 
-==========================  ===========================================================
-meta ``config``             the run's identity (:func:`config_of`): parameters, n, seed,
-                            sampler, law, policy, k, spring dtype, load path, solver
-                            settings, snapshot request
-meta ``attrs``              the output attributes built so far (provenance, counters)
-meta ``population``         weight, seed and sampler of the population
-meta ``steps_recorded``     T; ``snapshot_steps`` the steps of the snapshots taken
-meta ``checkpoint_every``,  the checkpoint interval of the run; its wall time so far [s]
-``wall_time_s``
-``pop_r`` ... ``pop_sin_phi``  the population arrays (n,) (a population drawn with
-                            ``seed=None`` or passed in cannot be drawn again)
-``delta``                   the committed displacement (3,) [m]
-``ev_*``                    the last converged evaluation (stress, standard errors,
-                            covariance, tangent, counts, mean angle): the predictor reads it
-``pos_*``                   the loop position (:class:`~asperity_sim.stepping._Position`)
-``state_*``                 :meth:`ContactState.state_arrays <asperity_sim.state.ContactState.state_arrays>`
-``energy_*``                running energy sums, event count and transitions (history laws)
-``rec_<name>``              the T recorded rows of every output variable
-``snap<i>_<key>``           the per-asperity arrays of the i-th snapshot
-==========================  ===========================================================
+- meta ``config``: the run's identity (:func:`config_of`): parameters, n, seed, sampler, law,
+  policy, k, spring dtype, load path, solver settings, snapshot request;
+- meta ``attrs``: the output attributes built so far (provenance, counters); ``population``:
+  weight, seed and sampler; ``steps_recorded`` (T) and ``snapshot_steps``;
+  ``checkpoint_every`` and ``wall_time_s`` (the run's wall time so far [s]);
+- ``pop_r``, ``pop_R``, ``pop_u``, ``pop_cos_phi``, ``pop_sin_phi``: the population (n,) (a
+  population drawn with ``seed=None`` or passed in cannot be drawn again);
+- ``delta``: the committed displacement (3,) [m]; ``ev_*``: the last converged evaluation
+  (stress, standard errors, covariance, tangent, counts, mean angle), which the predictor reads;
+- ``pos_*``: the loop position (``stepping._Position``);
+- ``state_*``: :meth:`ContactState.state_arrays <asperity_sim.state.ContactState.state_arrays>`;
+- ``energy_*``: running energy sums, event count and transitions (history laws);
+- ``rec_<name>``: the T recorded rows of every output variable;
+- ``snap<i>_<key>``: the per-asperity arrays of the i-th snapshot.
 
 Every array is checked (:func:`check_run_arrays` and the checks in :func:`restore`) before
 any kernel sees it, and any error of the mapping becomes a
