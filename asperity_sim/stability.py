@@ -646,9 +646,9 @@ def probe_intact(law, folder):
 
 def probe_nan_state(law, folder):
     def change(a):
-        if law == "paper":
-            return {"state_delta_c": _with_nan(a["state_delta_c"])}
-        return {"state_law0": _with_nan(a["state_law0"])}  # a spring of the first contact
+        if "state_law0" in a:  # history law: a spring of the first contact
+            return {"state_law0": _with_nan(a["state_law0"])}
+        return {"state_delta_c": _with_nan(a["state_delta_c"])}  # path-independent law: the committed Delta
     return _forged(law, folder, change)
 
 
@@ -672,7 +672,7 @@ def probe_other_law(law, folder):
     raw, _ = base_run(law, folder)
     ck = folder / "ck.npz"
     ck.write_bytes(raw)
-    other = "mdr" if law == "paper" else "paper"
+    other = next(name for name in LAWS if name != law)
     asim.simulate(asim.presets.S1, _tiny_path(), resume=ck, **{**_run_kw(law), "law": other})
     return "resumed under another law"
 
@@ -739,7 +739,7 @@ HOSTILE = (
             expected="exit 1, file unchanged"),
     Hostile("seed = 2^63", "seed_huge", note="the output stores a signed 64-bit seed"),
     Hostile("seed = -1", "seed_negative"),
-    *(h for law in ("paper", "mdr") for h in (
+    *(h for law, first in zip(LAWS, (True, False)) for h in (
         Hostile("intact checkpoint (control)", "intact", law, SAME),
         Hostile("checkpoint truncated to half", "truncated", law, "CheckpointError"),
         Hostile("checkpoint with a flipped bit (CRC-32 fails)", "bit_flip", law, "CheckpointError"),
@@ -747,8 +747,8 @@ HOSTILE = (
         Hostile("forged: heights unsorted, valid checksum", "unsorted_heights", law, "CheckpointError"),
         Hostile("forged: index out of range, valid checksum", "slot_index", law, "CheckpointError",
                 note="mdr: a contact slot naming asperity n; paper: stage index 99"),
-        Hostile("resume under another law", "other_law", law, "CheckpointError", quick=law == "paper"),
-        Hostile("resume on another load path", "other_path", law, "CheckpointError", quick=law == "paper"),
+        Hostile("resume under another law", "other_law", law, "CheckpointError", quick=first),
+        Hostile("resume on another load path", "other_path", law, "CheckpointError", quick=first),
         Hostile("killed during a checkpoint write, then resumed", "killed_write", law, SAME, quick=False,
                 note="SIGKILL between the write and the rename of the third checkpoint"),
     )),
