@@ -1,6 +1,9 @@
 """Checkpoints of a running :func:`~asperity_sim.simulate`: the full state, written atomically.
 
-Owns the checkpoint file format.  A checkpoint holds everything the loop needs to continue
+Owns the checkpoint file format: the container, its atomic write, its untrusted reading and
+the checks of what is read (:func:`require`, :func:`guard`).  Which arrays hold which part of
+a run, and how a run is saved to them and restored from them, is
+:mod:`asperity_sim.run_checkpoint`'s.  A checkpoint holds everything the loop needs to continue
 as if it had never stopped, so a resumed run is bit-identical to an uninterrupted one:
 
 - the run's configuration (parameters, n, seed, sampler, law, policy, springs k, load path,
@@ -35,10 +38,11 @@ or 2.0 with a plain numeric, boolean or unicode dtype (never object), and a head
 accounts for exactly the member's bytes (so a forged header cannot ask for terabytes); any
 exception while reading or decoding, whatever its type, becomes a :class:`CheckpointError`
 naming the file.  The meta record must be a JSON object with a well-formed ``config``
-(:func:`check_config`).  What the arrays *mean* is the driver's business: before any kernel
-sees an array it calls :func:`require` (dtype, shape, finite, bounds, sorted), and wraps its
-own mapping in :func:`guard`, which turns any ``KeyError``, ``IndexError``, ``TypeError``,
-``ValueError`` (e.g. from ``Population.__post_init__``) into a :class:`CheckpointError`.
+(:func:`check_config`).  What the arrays *mean* is :mod:`asperity_sim.run_checkpoint`'s
+business: before any kernel sees an array it calls :func:`require` (dtype, shape, finite,
+bounds, sorted), and wraps its own mapping in :func:`guard`, which turns any ``KeyError``,
+``IndexError``, ``TypeError``, ``ValueError`` (e.g. from ``Population.__post_init__``) into a
+:class:`CheckpointError`.
 
 Temporary files are named ``.<name>.<pid>.<random>.tmp`` next to the checkpoint.  A failed
 write removes its own; a killed process cannot, so :func:`save` first removes the temporaries
@@ -48,7 +52,6 @@ of the same checkpoint left by processes that no longer exist (or by this one).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import numbers
 import os
@@ -67,33 +70,6 @@ _DTYPE_KINDS = "biufU"  # bool, integers, floats, the unicode meta record; never
 
 class CheckpointError(ValueError):
     """A checkpoint cannot be used: unreadable, another version or format, or another run."""
-
-
-def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snapshots, spring_dtype="float64"):
-    """The run's identity as JSON-able values; a checkpoint continues only the same configuration."""
-    snaps = sorted(snapshots[0]) if not snapshots[1] else "stage_ends"
-    return {
-        "params": params.as_dict(),
-        "n": int(n),
-        "seed": None if seed is None else int(seed),
-        "sampler": sampler,
-        "law": law,
-        "policy": policy,
-        "k": int(k) if _has_history(law) else None,
-        "spring_dtype": spring_dtype if _has_history(law) else None,
-        "path": {"name": path.name,
-                 "stages": [{"control": list(s.control), "target": [float(t) for t in s.target],
-                             "increments": s.increments, "adaptive": s.adaptive,
-                             "max_fraction": s.max_fraction, "name": s.name} for s in path.stages]},
-        "settings": dataclasses.asdict(settings),
-        "snapshots": snaps,
-    }
-
-
-def _has_history(law) -> bool:
-    from . import laws
-
-    return laws.get(law).history is not None
 
 
 def differences(saved: dict, wanted: dict, prefix="") -> list[str]:
@@ -300,7 +276,7 @@ _CONFIG_TYPES = {"params": dict, "n": int, "seed": (int, type(None)), "sampler":
 
 
 def check_config(config, name="<checkpoint>") -> dict:
-    """Check the shape of a configuration read back from a file (see :func:`config_of`)."""
+    """Check the shape of a configuration read back from a file (see :func:`asperity_sim.run_checkpoint.config_of`)."""
     where = f"checkpoint {name!r}"
     if not isinstance(config, dict):
         raise CheckpointError(f"{where} has no valid 'config' record (got a {type(config).__name__})")
@@ -396,52 +372,11 @@ def _range(lo, hi, lo_open, hi_open):
     return f"{left}, {right}"
 
 
-def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> None:
-    """The checks of docs/robustness.md for the arrays whose layout the driver has kept since format 1.
-
-    Population (``pop_*``), the current and last evaluated displacement and stress (``delta``,
-    ``ev_*``), the loop position (``pos_*``) and the birth angles (``theta_birth``, policy birth).
-    History (``hist_*``), energy, recorder (``rec_*``) and snapshot arrays are the driver's to check
-    with :func:`require`.  Raises :class:`CheckpointError` naming the file, array, value and range.
-    """
-    half_pi = 0.5 * np.pi
-    f8, i8 = np.float64, np.int64
-    require(arrays, "pop_r", shape=(n,), dtype=f8, lo=0.0, sorted=True)
-    require(arrays, "pop_R", shape=(n,), dtype=f8, lo=0.0, lo_open=True)
-    require(arrays, "pop_u", shape=(n,), dtype=f8, lo=0.0, hi=half_pi)
-    for name in ("pop_cos_phi", "pop_sin_phi"):
-        require(arrays, name, shape=(n,), dtype=f8, lo=-1.0, hi=1.0)
-    for name in ("delta", "ev_delta", "ev_stress", "ev_stderr", "pos_start_delta", "pos_start_stress"):
-        require(arrays, name, shape=(3,), dtype=f8)
-    for name in ("ev_covariance", "ev_tangent"):
-        require(arrays, name, shape=(3, 3), dtype=f8)
-    require(arrays, "ev_ints", shape=(4,), dtype=i8, lo=0, hi=n)
-    require(arrays, "ev_mean_theta", shape=(1,), dtype=f8, lo=0.0, hi=half_pi)
-    pos_i = require(arrays, "pos_i", shape=(2,), dtype=i8, lo=0)
-    where = f"checkpoint {getattr(arrays, 'path', '<unknown>')!r}"
-    if pos_i[0] > n_stages or pos_i[1] > 1:
-        raise CheckpointError(f"{where}: array pos_i = {pos_i.tolist()} (valid range: stage index in [0, "
-                              f"{n_stages}] ({n_stages}: the path is done), started flag in [0, 1])")
-    pos_f = require(arrays, "pos_f", shape=(3,), dtype=f8)
-    if not (0.0 <= pos_f[0] <= 1.0 and 0.0 <= pos_f[1] <= 1.0 and (pos_f[1] > 0.0 or pos_i[1] == 0)
-            and pos_f[2] >= 0.0):
-        raise CheckpointError(f"{where}: array pos_f = {pos_f.tolist()} (valid range: s in [0, 1], ds in (0, 1] "
-                              "(0 before the stage starts), k_ref >= 0)")
-    prev = require(arrays, "pos_prev", shape=(7,), dtype=f8, finite=False)
-    if not np.isnan(prev[0]) and not (np.all(np.isfinite(prev)) and 0.0 <= prev[0] <= 1.0):
-        raise CheckpointError(f"{where}: array pos_prev = {prev.tolist()} (valid: NaN first (no previous point) or "
-                              "s in [0, 1] and a finite Delta and slope)")
-    if birth:
-        require(arrays, "state_theta_birth", shape=(n,), dtype=f8, finite=False, lo=0.0, hi=half_pi)
-        if np.isinf(arrays["state_theta_birth"]).any():
-            raise CheckpointError(f"{where}: array state_theta_birth holds inf (valid: NaN (not born) or [0, pi/2])")
-
-
 @contextlib.contextmanager
 def guard(path, what="is incomplete or damaged"):
     """Turn any error of mapping a checkpoint's content into a :class:`CheckpointError` naming ``path``.
 
-    For the driver's own reading of meta and arrays::
+    For the reading of meta and arrays (:mod:`asperity_sim.run_checkpoint`)::
 
         with ckpt.guard(path):
             pop = Population(params=params, r=ckpt.require(arrays, "pop_r", ...), ...)
@@ -459,5 +394,5 @@ def guard(path, what="is incomplete or damaged"):
 
 
 def read_config(path, version: str) -> dict:
-    """The configuration stored in a checkpoint (see :func:`config_of`)."""
+    """The configuration stored in a checkpoint (see :func:`asperity_sim.run_checkpoint.config_of`)."""
     return load(path, version)[0]["config"]

@@ -4,7 +4,9 @@ Owns the loop: for each stage, increments with cut-backs; for each increment, a 
 solve (:mod:`asperity_sim.solver`), then commit (:class:`~asperity_sim.state.ContactState`)
 and record.  How the next increment is sized and predicted, and the named failure of one
 that cannot be completed, live in :mod:`asperity_sim.stepping`; the errors in
-:mod:`asperity_sim.errors`; the checkpoint file in :mod:`asperity_sim.checkpoint`.
+:mod:`asperity_sim.errors`; what a checkpoint holds of a run, and how a run is saved to it
+and restored from it, in :mod:`asperity_sim.run_checkpoint` (the file format in
+:mod:`asperity_sim.checkpoint`).
 Displacement-controlled increments of a small population under a path-independent law (one
 evaluation each, nothing to commit) go through one kernel call per batch instead
 (:meth:`_Run.prescribed_batch`), with the same bits.  The loop runs inside ``try/finally``
@@ -15,7 +17,8 @@ Every input is checked before any work.  A run stops only with a named
 :class:`SimulationError` that says why (a stress the interface cannot carry, an increment
 that does not converge after every cut-back, the wall-time limit), never with NaN.  The
 whole state of a run (:class:`_Run`) can be checkpointed at chosen steps and resumed
-bit-identically (:mod:`asperity_sim.checkpoint`, :func:`resume`).
+bit-identically (:func:`asperity_sim.run_checkpoint.save` and
+:func:`~asperity_sim.run_checkpoint.restore`, :func:`resume`).
 """
 
 from __future__ import annotations
@@ -31,12 +34,11 @@ import warnings
 import numpy as np
 
 from . import __version__
-from . import checkpoint as ckpt
-from . import laws
-from .assemble import (CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, POLICIES, SERIAL_CHUNKS, Evaluation,
+from . import laws, run_checkpoint
+from .assemble import (CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, POLICIES, SERIAL_CHUNKS,
                        Workspace, check_choice, check_delta, evaluate_steps, evaluate_unchecked, evaluation_from)
 from .params import InterfaceParams, check_real
-from .paths import LoadPath, Stage
+from .paths import LoadPath
 from .population import N_MAX, SAMPLERS, Population
 from .recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from .solver import SolverSettings, solve_increment
@@ -139,18 +141,16 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         if checkpoint is None:
             raise ValueError(f"checkpoint_every = {checkpoint_every} needs a checkpoint file (checkpoint = None)")
     resume = _check_file("resume", resume)
-    loaded = None
+    saved = None
     if resume is not None:
-        loaded = (resume.meta, resume.arrays) if isinstance(resume, _Loaded) else ckpt.load(resume, __version__)
+        saved = run_checkpoint.read(resume)
         if population is not None:
             n, seed, sampler = population.n, population.seed, population.sampler
-        wanted = ckpt.config_of(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k,
-                                spring_dtype=spring_dtype, settings=settings, snapshots=snaps)
-        diff = ckpt.differences(loaded[0]["config"], wanted)
-        if diff:
-            raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} belongs to another run: " + "; ".join(diff))
+        run_checkpoint.check_same_run(saved, run_checkpoint.config_of(
+            params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
+            settings=settings, snapshots=snaps))
     run = _Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
-               snaps=snaps, settings=settings, population=population, loaded=loaded, resume=resume)
+               snaps=snaps, settings=settings, population=population, saved=saved)
     return run.go(output=output, progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint,
                   checkpoint_every=checkpoint_every)
 
@@ -167,78 +167,51 @@ def resume(checkpoint, *, output=None, progress=None, max_wall_time: float | Non
     checkpoint = _check_file("checkpoint", checkpoint)
     if checkpoint is None:
         raise ValueError("checkpoint = None is not valid: name the checkpoint file to resume from (str or os.PathLike)")
-    meta, arrays = ckpt.load(checkpoint, __version__)
-    cfg = meta["config"]
-    try:
-        params = InterfaceParams(**cfg["params"])
-        path = LoadPath(tuple(Stage(tuple(s["control"]), tuple(s["target"]), s["increments"], s["adaptive"],
-                                    s["max_fraction"], s["name"]) for s in cfg["path"]["stages"]),
-                        name=cfg["path"]["name"])
-        settings = SolverSettings(**cfg["settings"])
-    except (KeyError, TypeError, ValueError) as err:
-        raise ckpt.CheckpointError(f"checkpoint {str(checkpoint)!r} holds an invalid configuration ({err})") from err
-    snapshots = cfg["snapshots"] if cfg["snapshots"] != [] else None
-    every = meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
-    return simulate(params, path, n=cfg["n"], seed=cfg["seed"], sampler=cfg["sampler"], law=cfg["law"],
-                    policy=cfg["policy"], k=cfg["k"] or 16, spring_dtype=cfg.get("spring_dtype") or "float64",
-                    snapshots=snapshots, settings=settings, output=output,
-                    progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every,
-                    resume=_Loaded(checkpoint, meta, arrays))
-
-
-class _Loaded(os.PathLike):
-    """A checkpoint path already read by :func:`resume` (so the file is read once)."""
-
-    def __init__(self, path, meta, arrays):
-        self.path, self.meta, self.arrays = os.fspath(path), meta, arrays
-
-    def __fspath__(self):
-        return self.path
+    saved = run_checkpoint.read(checkpoint)
+    every = saved.meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
+    return simulate(**run_checkpoint.run_arguments(saved), output=output, progress=progress,
+                    max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every, resume=saved)
 
 
 class _Run:
     """The state of one run: population, committed history, recorder, loop position."""
 
     def __init__(self, params, path, *, n, seed, sampler, law, policy, k, spring_dtype, snaps, settings, population,
-                 loaded, resume):
+                 saved):
         self.params, self.path, self.policy, self.settings = params, path, policy, settings
         self.law = laws.get(law)
         self.snap_steps, self.snap_stage_ends = snaps
         self.resumed_from = None
-        self.config = None
-        if loaded is not None:
-            meta, arrays = loaded
-            with ckpt.guard(resume):  # every array is checked before any kernel sees it
-                ckpt.check_run_arrays(arrays, n=int(meta["config"]["n"]), n_stages=len(path.stages),
-                                      birth=policy == "birth")
-                pop = _population_from(params, meta, arrays)
-            if population is not None and not all(np.array_equal(getattr(population, a), getattr(pop, a))
-                                                  for a in ("r", "R", "u", "cos_phi", "sin_phi")):
-                raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} holds another population than the "
-                                           "one passed in")
+        self.variables = {**STEP_VARIABLES, **history_variables(self.law)}
+        self.domain = DomainMonitor() if self.law.path_independent else None
+        if self.domain is not None:
+            self.variables.update(DOMAIN_VARIABLES)
+        restored = None
+        if saved is not None:  # every array is checked before any kernel sees it
+            restored = run_checkpoint.restore(saved, params=params, n_stages=len(path.stages), law=self.law,
+                                              policy=policy, k=k, spring_dtype=spring_dtype,
+                                              variables=self.variables, population=population)
+            pop = restored.pop
         elif population is not None:
             pop = population
         else:
             pop = Population.sample(params, n, seed=seed, sampler=sampler)
         self.pop = pop
-        self.config = ckpt.config_of(params, path, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law,
-                                     policy=policy, k=k, spring_dtype=spring_dtype, settings=settings,
-                                     snapshots=snaps)
+        self.config = run_checkpoint.config_of(params, path, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law,
+                                               policy=policy, k=k, spring_dtype=spring_dtype, settings=settings,
+                                               snapshots=snaps)
         self.ws = Workspace(pop.n)
         self.length = length_scale(params, path)
         total = sum(s.increments for s in path.stages)
-        self.variables = {**STEP_VARIABLES, **history_variables(self.law)}
-        self.domain = DomainMonitor() if self.law.path_independent else None
-        if self.domain is not None:
-            self.variables.update(DOMAIN_VARIABLES)
         self.rec = Recorder(total + 1, self.variables)
         self.wall_before = 0.0
-        self.state = ContactState(pop, self.law, policy, k=k, spring_dtype=spring_dtype)
         self.deadline = math.inf  # set by go() from max_wall_time; evaluations check it
-        if loaded is None:
+        if restored is None:
+            self.state = ContactState(pop, self.law, policy, k=k, spring_dtype=spring_dtype)
             self._fresh()
         else:
-            self._restore(*loaded, resume)
+            self.state = restored.contact
+            self._continue(restored, saved.path)
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -269,61 +242,18 @@ class _Run:
         if 0 in self.snap_steps:
             self.take_snapshot(0)
 
-    def _restore(self, meta, arrays, resume):
-        size = int(meta["steps_recorded"])
-        with ckpt.guard(resume):
-            for name, var in self.variables.items():
-                a = ckpt.require(arrays, f"rec_{name}", finite=var.dtype.startswith("f"), path=os.fspath(resume))
-                if a.shape[:1] != (size,) or a.dtype != np.dtype(var.dtype):
-                    raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r}: array rec_{name} has shape "
-                                               f"{a.shape} and dtype {a.dtype}, expected {size} rows of {var.dtype}")
-            n, where = self.pop.n, os.fspath(resume)
-            for i, _ in enumerate(meta["snapshot_steps"]):
-                for key, shape, dtype in (("delta_n", (n,), "f8"), ("theta", (n,), "f8"), ("force", (n, 3), "f8"),
-                                          ("state", (n,), "i1")):
-                    ckpt.require(arrays, f"snap{i}_{key}", shape=shape, dtype=dtype, path=where)
-            if self.law.history is not None:
-                ckpt.require(arrays, "energy_f", shape=(3,), dtype="f8", path=where)
-                ckpt.require(arrays, "energy_events", shape=(1,), dtype="i8", lo=0, path=where)
-                ckpt.require(arrays, "energy_transitions", shape=(4, 4), dtype="i8", lo=0, path=where)
-        try:
-            self.attrs = dict(meta["attrs"])
-            self.wall_before = float(meta.get("wall_time_s", 0.0))
-            self.state.restore({k[6:]: v for k, v in arrays.items() if k.startswith("state_")})
-            self.delta = arrays["delta"].copy()
-            ints = arrays["ev_ints"]
-            self.ev = Evaluation(delta=arrays["ev_delta"].copy(), stress=arrays["ev_stress"].copy(),
-                                 stderr=arrays["ev_stderr"].copy(), covariance=arrays["ev_covariance"].copy(),
-                                 tangent=arrays["ev_tangent"].copy(), n_contact=int(ints[0]), n_slip=int(ints[1]),
-                                 n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]),
-                                 n_active=int(ints[3]))
-            if self.law.history is not None:
-                ef = arrays["energy_f"]
-                self.energy = {"external_work": float(ef[0]), "elastic_energy": float(ef[1]),
-                               "dissipation": float(ef[2]), self.law.history.events: int(arrays["energy_events"][0]),
-                               "transitions": arrays["energy_transitions"].copy()}
-            else:
-                self.energy = {}
-            pi, pf = arrays["pos_i"], arrays["pos_f"]
-            prev = arrays.get("pos_prev")  # (s, Delta, slope); absent in checkpoints before the cubic predictor
-            self.pos = _Position(i_stage=int(pi[0]), started=bool(pi[1]), s=float(pf[0]), ds=float(pf[1]),
-                                 k_ref=float(pf[2]), start_delta=arrays["pos_start_delta"].copy(),
-                                 start_stress=arrays["pos_start_stress"].copy())
-            if prev is not None:
-                self.pos.prev_s, self.pos.prev_delta, self.pos.prev_slope = float(prev[0]), prev[1:4].copy(), \
-                    prev[4:7].copy()
-            size = int(meta["steps_recorded"])
-            for i in range(size):
-                self.rec.append(**{name: arrays[f"rec_{name}"][i] for name in self.variables})
-                if self.domain is not None:  # its state is a function of the recorded steps: replayed
-                    self.domain.step(i, arrays["rec_displacement"][i], arrays["rec_stress"][i])
-            for i, step in enumerate(meta["snapshot_steps"]):
-                prefix = f"snap{i}_"
-                self.rec.add_snapshot(int(step), {key[len(prefix):]: v for key, v in arrays.items()
-                                                  if key.startswith(prefix)})
-        except (KeyError, IndexError, ValueError, TypeError, OverflowError) as err:
-            raise ckpt.CheckpointError(f"checkpoint {os.fspath(resume)!r} is incomplete or damaged ({err})") from err
-        self.resumed_from = (os.fspath(resume), self.rec.size - 1)
+    def _continue(self, restored, source):
+        """Take up the state of a checkpoint (:func:`asperity_sim.run_checkpoint.restore`)."""
+        self.attrs, self.wall_before = restored.attrs, restored.wall_time
+        self.delta, self.ev, self.energy, self.pos = restored.delta, restored.ev, restored.energy, restored.pos
+        rows = restored.rows
+        for i in range(restored.steps_recorded):
+            self.rec.append(**{name: rows[name][i] for name in self.variables})
+            if self.domain is not None:  # its state is a function of the recorded steps: replayed
+                self.domain.step(i, rows["displacement"][i], rows["stress"][i])
+        for step, snap in restored.snapshots:
+            self.rec.add_snapshot(step, snap)
+        self.resumed_from = (source, self.rec.size - 1)
 
     # -- the law's domain (path-independent laws) -------------------------------------------------
 
@@ -358,33 +288,7 @@ class _Run:
         self.rec.add_snapshot(step, self.state.snapshot(self.delta))
 
     def save_checkpoint(self, target, every, wall):
-        pop, ev, pos = self.pop, self.ev, self.pos
-        arrays = {"pop_r": pop.r, "pop_R": pop.R, "pop_u": pop.u, "pop_cos_phi": pop.cos_phi,
-                  "pop_sin_phi": pop.sin_phi, "delta": self.delta,
-                  "ev_delta": ev.delta, "ev_stress": ev.stress, "ev_stderr": ev.stderr,
-                  "ev_covariance": ev.covariance, "ev_tangent": ev.tangent,
-                  "ev_ints": np.array([ev.n_contact, ev.n_slip, ev.n_partial, ev.n_active], dtype=np.int64),
-                  "ev_mean_theta": np.array([ev.mean_theta]),
-                  "pos_i": np.array([pos.i_stage, int(pos.started)], dtype=np.int64),
-                  "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
-                  "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress,
-                  "pos_prev": np.concatenate([[pos.prev_s], pos.prev_delta, pos.prev_slope])}
-        arrays.update({f"state_{k}": v for k, v in self.state.state_arrays().items()})
-        if self.law.history is not None:
-            arrays["energy_f"] = np.array([self.energy["external_work"], self.energy["elastic_energy"],
-                                           self.energy["dissipation"]])
-            arrays["energy_events"] = np.array([self.energy[self.law.history.events]], dtype=np.int64)
-            arrays["energy_transitions"] = np.asarray(self.energy["transitions"], dtype=np.int64)
-        recorded = self.rec.to_dataset({})
-        for name in self.variables:
-            arrays[f"rec_{name}"] = recorded[name].values
-        for i, (_, snap) in enumerate(self.rec.snapshots):
-            arrays.update({f"snap{i}_{key}": v for key, v in snap.items()})
-        meta = {"version": __version__, "config": self.config, "attrs": self.attrs,
-                "population": {"weight": pop.weight, "seed": pop.seed, "sampler": pop.sampler},
-                "steps_recorded": self.rec.size, "snapshot_steps": [int(s) for s, _ in self.rec.snapshots],
-                "checkpoint_every": every, "wall_time_s": wall}
-        ckpt.save(target, meta=meta, arrays=arrays)
+        run_checkpoint.save(self, target, every=every, wall_time=wall)
 
     # -- displacement-controlled increments in batches --------------------------------------------
 
@@ -594,19 +498,6 @@ class _Run:
                         raise OutputWriteError(note + "; the complete result is on this exception as .dataset",
                                                ds_out) from err
         return ds_out
-
-
-def _population_from(params, meta, arrays):
-    info = meta["population"]
-    try:
-        pop = Population(params=params, r=arrays["pop_r"], R=arrays["pop_R"], u=arrays["pop_u"],
-                         cos_phi=arrays["pop_cos_phi"], sin_phi=arrays["pop_sin_phi"], weight=float(info["weight"]),
-                         seed=info["seed"], sampler=info["sampler"])
-    except KeyError as err:
-        raise ckpt.CheckpointError(f"checkpoint holds no population array {err}") from err
-    if pop.n != meta["config"]["n"] or any(a.shape != (pop.n,) for a in (pop.R, pop.u, pop.cos_phi, pop.sin_phi)):
-        raise ckpt.CheckpointError("checkpoint population arrays do not match its sample size")
-    return pop
 
 
 def _stderr_attrs(attrs, n):

@@ -11,8 +11,8 @@ kernel sees it.  No temporary file survives a failed or killed write.
 
 The property tests build one real checkpoint per law (``simulate(..., checkpoint=)``, n = 200)
 and corrupt it by the thousand.  The forged-array cases resume in a child process (a forged
-array that reached a kernel could crash the interpreter); those that need the driver to call
-:func:`require` on its arrays before any kernel sees them (``driver._Run``).
+array that reached a kernel could crash the interpreter); they rely on
+:mod:`asperity_sim.run_checkpoint` calling :func:`require` on every array before any kernel sees it.
 """
 
 import io
@@ -32,9 +32,10 @@ from hypothesis import strategies as st
 import asperity_sim as asim
 from asperity_sim import CheckpointError, presets, simulate
 from asperity_sim import checkpoint as ckpt
+from asperity_sim import run_checkpoint
 from asperity_sim.paths import LoadPath, Stage
+from asperity_sim.testing import forge, members, meta_bytes, npy_bytes, same_run, write_zip
 
-VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}
 N = 200
 
 
@@ -61,16 +62,6 @@ def stop_at(step_to_stop):
     return progress
 
 
-def same_run(a, b):
-    if set(a.variables) != set(b.variables) or set(a.attrs) != set(b.attrs):
-        return False
-    for name in a.variables:
-        if a[name].dtype != b[name].dtype or not np.array_equal(a[name].values, b[name].values,
-                                                                equal_nan=a[name].dtype.kind == "f"):
-            return False
-    return all(np.array_equal(np.asarray(a.attrs[k]), np.asarray(b.attrs[k])) for k in set(a.attrs) - VOLATILE)
-
-
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
     """{law: (checkpoint bytes, uninterrupted dataset)} from a tiny run stopped at step 5."""
@@ -89,29 +80,6 @@ def saved(tmp_path_factory):
 def _copy(src, dst):
     dst.write_bytes(src.read_bytes())
     return dst
-
-
-def members(data):
-    with zipfile.ZipFile(io.BytesIO(data)) as z:
-        return {info.filename: z.read(info) for info in z.infolist()}, z.infolist()
-
-
-def write_zip(path, parts, compression=zipfile.ZIP_STORED):
-    """A zip with the given (name -> bytes) members and valid CRCs."""
-    with zipfile.ZipFile(path, "w", compression=compression) as z:
-        for name, raw in parts.items():
-            z.writestr(name, raw)
-    return path
-
-
-def npy_bytes(a):
-    buf = io.BytesIO()
-    np.save(buf, a, allow_pickle=False)
-    return buf.getvalue()
-
-
-def meta_bytes(doc):
-    return npy_bytes(np.array(json.dumps(doc)))
 
 
 def good_meta(config=None):
@@ -396,48 +364,7 @@ def test_some_single_flips_resume_identically_and_most_are_refused(saved, tmp_pa
     assert resume_outcome(path, full) == "error"
 
 
-# forged arrays with a valid zip: the same member names, rewritten contents ------------------------
-
-def forge(arrays, name, how, rng):
-    """A damaged copy of one array (``how``): the kinds of forgery the issue lists."""
-    a = arrays[name]
-    if how == "nan" and a.dtype.kind == "f" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = np.nan
-    elif how == "inf" and a.dtype.kind == "f" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = -np.inf
-    elif how == "huge" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = np.iinfo(a.dtype).max if a.dtype.kind in "iu" else 1e300
-    elif how == "negative" and a.size and a.dtype.kind in "if":
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = -7
-    elif how == "reverse" and a.ndim and a.shape[0] > 1:
-        a = a[::-1].copy()
-    elif how == "shorter" and a.ndim and a.shape[0] > 0:
-        a = a[:-1].copy()
-    elif how == "longer" and a.ndim:
-        a = np.concatenate([a, a[:1]])
-    elif how == "flat" and a.ndim > 1:
-        a = a.ravel().copy()
-    elif how == "float32" and a.dtype.kind == "f":
-        a = a.astype(np.float32)
-    elif how == "to_int" and a.dtype.kind in "fb":
-        a = np.nan_to_num(a).astype(np.int64)
-    elif how == "to_float" and a.dtype.kind in "iub":
-        a = a.astype(np.float64)
-    elif how == "scalar":
-        a = np.array(a.ravel()[0] if a.size else 0)
-    elif how == "drop":
-        return None
-    else:
-        return False  # this forgery does not apply to this array
-    return a
-
-
-HOWS = ("nan", "inf", "huge", "negative", "reverse", "shorter", "longer", "flat", "float32", "to_int", "to_float",
-        "scalar", "drop")
+# forged arrays with a valid zip (asperity_sim.testing.forge): the same member names, rewritten contents ----
 
 CASE_TIMEOUT = 10.0  # s per forged file: an intact run of this size resumes in well under a second
 CHILD = textwrap.dedent("""
@@ -614,7 +541,7 @@ def test_check_run_arrays_accepts_genuine_checkpoints_and_refuses_forged_ones(tm
                  **{**run_kw(law), "policy": policy})
     meta, arrays = ckpt.load(ck, asim.__version__)
     kw = dict(n=N, n_stages=3, birth=policy == "birth")
-    ckpt.check_run_arrays(arrays, **kw)
+    run_checkpoint.check_run_arrays(arrays, **kw)
     rng = np.random.default_rng(1)
     checked = ("pop_r", "pop_R", "pop_u", "pop_cos_phi", "pop_sin_phi", "delta", "ev_delta", "ev_stress",
                "ev_stderr", "ev_covariance", "ev_tangent", "ev_ints", "ev_mean_theta", "pos_i", "pos_f",
@@ -634,16 +561,16 @@ def test_check_run_arrays_accepts_genuine_checkpoints_and_refuses_forged_ones(tm
             else:
                 bad[name] = forged
             with pytest.raises(CheckpointError, match=f"checkpoint '{ck}'.*{name}") as exc:
-                ckpt.check_run_arrays(bad, **kw)
+                run_checkpoint.check_run_arrays(bad, **kw)
             assert "valid" in str(exc.value) or "missing" in str(exc.value) or "expected" in str(exc.value)
             n_cases += 1
     assert n_cases > 100
     assert arrays["pos_i"][1] == 1  # started: ds = 0 is refused
     for pos_f in ([0.5, 0.0, 1.0], [1.5, 0.1, 1.0], [0.5, 0.1, -1.0], [0.5, 1.5, 1.0]):
         with pytest.raises(CheckpointError, match="pos_f"):
-            ckpt.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_f": np.array(pos_f)}), **kw)
+            run_checkpoint.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_f": np.array(pos_f)}), **kw)
     with pytest.raises(CheckpointError, match=r"pos_i = \[4, 1\]"):
-        ckpt.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_i": np.array([4, 1])}), **kw)
+        run_checkpoint.check_run_arrays(ckpt.Arrays(ck, {**arrays, "pos_i": np.array([4, 1])}), **kw)
 
 
 @pytest.mark.parametrize("law, policy", [("paper", "follow"), ("mdr", "follow"), ("paper", "birth"), ("mdr", "birth")])
@@ -664,4 +591,4 @@ def test_check_run_arrays_accepts_every_checkpoint_of_a_run(tmp_path, law, polic
         path = tmp_path / f"c{i}.npz"
         path.write_bytes(raw)
         _, arrays = ckpt.load(path, asim.__version__)
-        ckpt.check_run_arrays(arrays, n=N, n_stages=3, birth=policy == "birth")
+        run_checkpoint.check_run_arrays(arrays, n=N, n_stages=3, birth=policy == "birth")

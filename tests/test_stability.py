@@ -1,8 +1,10 @@
 """Numerical stability on stiff and extreme cases (issue 6, items 1-2).
 
-The fast part of the stability matrix (``scenarios/stability.py --quick``) runs here at tiny
-size: every run either completes or stops with the expected named exception, and no output
-is NaN or inf.  Around it, the solver behaviours the matrix relies on, each with a closed
+The fast part of the stability study (``studies/stability.py --quick``, cases in
+:mod:`asperity_sim.stability`) runs here at tiny size: every run either completes or stops with
+the expected named exception, and no output is NaN or inf; every hostile input of the quick
+subset (unwritable outputs, bad seeds, damaged and forged checkpoints) is refused by the named
+exception or resumes to the same bits.  Around it, the solver behaviours the matrix relies on, each with a closed
 form or an exact symmetry:
 
 * e = 0, mu = 0: contacts are frictionless and normal to the plane (SPEC §3, §5), so
@@ -20,8 +22,9 @@ form or an exact symmetry:
   run must complete (residual recorded) instead of failing on a collapsed bracket.
 """
 
-import importlib
 import math
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -29,12 +32,11 @@ import numpy as np
 import pytest
 
 import asperity_sim as asim
-from asperity_sim import Population, SolverSettings, StressNotReachableError, paths, presets, simulate
+from asperity_sim import Population, SolverSettings, StressNotReachableError, paths, presets, simulate, stability
 from asperity_sim.paths import LoadPath, Stage
 from asperity_sim.solver import SolveResult
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))
-stability = importlib.import_module("stability")
+STUDY = Path(__file__).resolve().parent.parent / "studies" / "stability.py"
 
 
 def all_finite(ds):
@@ -87,31 +89,90 @@ def test_verdict_flags_what_the_issue_forbids():
     assert stability.verdict(named, 100).startswith("FAIL")  # a failure must say why
 
 
+def run_study(*argv):
+    """The study as a program, importing this checkout's package (not an installed one)."""
+    root = str(STUDY.parent.parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
+    return subprocess.run([sys.executable, str(STUDY), *argv], capture_output=True, text=True, timeout=600, env=env)
+
+
 @pytest.mark.parametrize("argv, word", [(["--soft-limit", "0"], "soft-limit"), (["--hard-limit", "-1"], "hard-limit"),
                                         (["--only", "no such case"], "selects no case"), (["--n", "0"], "--n = 0")])
-def test_scenario_rejects_bad_options(argv, word, capsys, tmp_path):
-    with pytest.raises(SystemExit) as exc:
-        stability.main(argv + ["--outdir", str(tmp_path)])
-    assert exc.value.code != 0
-    assert word in capsys.readouterr().err
+def test_study_rejects_bad_options(argv, word, tmp_path):
+    done = run_study(*argv, "--outdir", str(tmp_path))
+    assert done.returncode == 2, done.stderr
+    assert word in done.stderr
     assert not list(tmp_path.iterdir())  # nothing ran, nothing written
 
 
+def test_study_says_what_it_measures_takes_and_writes():
+    doc = STUDY.read_text().split('"""')[1]
+    for words in ("What it measures", "Takes:", "minute", "Writes outputs/stability.nc", "hostile"):
+        assert words in doc, words
+
+
 @pytest.mark.slow
-def test_scenario_writes_netcdf_and_markdown(tmp_path, capsys):
-    code = stability.main(["--quick", "--n", "200", "--increments", "2", "--only", "mu=0", "--in-process",
-                           "--outdir", str(tmp_path)])
-    assert code == 0
+def test_study_writes_netcdf_and_markdown(tmp_path):
+    done = run_study("--quick", "--n", "200", "--increments", "2", "--only", "mu=0", "--only", "forged",
+                     "--in-process", "--outdir", str(tmp_path))
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     from asperity_sim.io import read_netcdf
 
     ds = read_netcdf(tmp_path / "stability.nc")
-    assert ds.sizes["run"] >= 10
-    assert set(ds["verdict"].values) == {"pass"}
-    for name in ("iter_max", "iter_mean", "residual_final", "wall_time_s"):
+    assert ds.sizes["run"] >= 10 and ds.sizes["hostile"] == 6
+    assert set(ds["verdict"].values) == {"pass"} and set(ds["hostile_verdict"].values) == {"pass"}
+    for name in ("iter_max", "iter_mean", "residual_final", "wall_time_s", "hostile_wall_time_s"):
         assert ds[name].attrs["long_name"] and np.all(np.isfinite(ds[name].values))
     md = (tmp_path / "stability.md").read_text()
-    assert md.count("\n| ") > ds.sizes["run"] and "NaN/inf" in md
-    assert "wrote" in capsys.readouterr().out
+    assert md.count("\n| ") > ds.sizes["run"] + ds.sizes["hostile"] and "NaN/inf" in md and "Hostile inputs" in md
+    assert "wrote" in done.stdout
+
+
+# --------------------------------------------------------------------------- hostile inputs and checkpoints
+
+
+def test_quick_hostile_inputs_end_as_expected(tmp_path):
+    cases = stability.select_hostile(quick=True)
+    assert len(cases) >= 18
+    records = stability.run_hostile_table(cases, hard_limit=120.0, in_process=True, log=lambda *a: None)
+    bad = [(r["case"], r["law"], r["outcome"], r["verdict"], r["message"][:300]) for r in records
+           if r["verdict"] not in ("pass", "skipped")]
+    assert not bad, bad
+    skipped = [r for r in records if r["verdict"] == "skipped"]
+    assert all(r["case"].startswith("output in a folder without write permission") for r in skipped), skipped
+    assert sum(r["outcome"] == "CheckpointError" for r in records) >= 10
+    assert sum(r["outcome"] == stability.SAME for r in records) == 2  # the intact controls of both laws
+
+
+def test_hostile_table_covers_the_issue_cases():
+    names = " | ".join(h.name for h in stability.HOSTILE)
+    for words in ("existing folder", "under a regular file", "without write permission", "equal to the checkpoint",
+                  "without --overwrite", "2^63", "seed = -1", "truncated", "flipped bit", "NaN", "unsorted",
+                  "out of range", "another law", "another load path", "killed during a checkpoint write"):
+        assert words in names, words
+    assert {h.law for h in stability.HOSTILE if "checkpoint" in h.name} == {"paper", "mdr"}
+
+
+def test_hostile_verdict_flags_what_the_issue_forbids():
+    ok = {"outcome": "CheckpointError", "expected": "CheckpointError", "message": "checkpoint '/x.npz' is damaged"}
+    assert stability.hostile_verdict(ok) == "pass"
+    assert stability.hostile_verdict({**ok, "message": "damaged"}).startswith("FAIL")  # names no file
+    assert stability.hostile_verdict({**ok, "outcome": "KeyError"}).startswith("FAIL")
+    assert stability.hostile_verdict({**ok, "outcome": "complete"}).startswith("FAIL")
+    assert stability.hostile_verdict({**ok, "outcome": "skipped", "message": ""}).startswith("FAIL")  # say why
+    assert stability.hostile_verdict({**ok, "outcome": "skipped", "message": "root"}) == "skipped"
+    same = {"outcome": "same bits", "expected": "same bits", "message": ""}
+    assert stability.hostile_verdict(same) == "pass"
+    assert stability.hostile_verdict({**same, "outcome": "resumed to different bits"}).startswith("FAIL")
+
+
+@pytest.mark.slow
+def test_kill_during_a_checkpoint_write_is_cleaned_up_and_resumes_to_the_same_bits():
+    for law in ("paper", "mdr"):
+        case = next(h for h in stability.HOSTILE if h.probe == "killed_write" and h.law == law)
+        rec = stability.run_hostile(case)
+        assert rec["outcome"] == stability.SAME and stability.hostile_verdict(rec) == "pass", rec
+        assert ".tmp" in rec["message"] and "removed" in rec["message"]
 
 
 @pytest.mark.slow

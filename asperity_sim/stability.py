@@ -1,60 +1,42 @@
-"""Stability matrix: stiff and extreme interfaces on the paper's paths and a cyclic shear path.
+"""The stability study's cases: extreme parameters and load paths, hostile inputs and checkpoints.
 
-Physical question: does every run over the corners of the parameter space either finish
-with finite results or stop with a named exception that says why?  Each case changes the
-R1 (or S1) set of Table 1 towards an edge of SPEC §1 -- alone and combined -- and runs
+Owns the definition of the stability matrix run by ``studies/stability.py`` (and, at tiny
+size, by ``tests/test_stability.py``): what each case is, what it must end with, how one case
+is run and judged, and the tables written from the records.  Two tables:
 
-* ``three_step``: the 3-step displacement path (SPEC §7, Fig. 10/11) to d,
-* ``cns``: sigma_1 to sigma_n, then Delta_2 to 2 d at constant normal stress (Fig. 13),
-* ``cyclic``: sigma_1 to sigma_n, then Delta_2 -> +A -> -A -> +A at constant sigma_1 (A = d/2),
-* where a case asks for them: ``zero_load`` (stress control from exactly zero load:
-  sigma_1 = sigma_2 = 0 held, then shear at zero normal stress, then sigma_1 to sigma_n under
-  shear), ``stress_shear`` (sigma_1, sigma_2 = 0.3 mu sigma_1 and sigma_3 = 0 all prescribed),
-  ``above_strength`` (sigma_2 = 3 (mu + 1) sigma_n prescribed, beyond the frictional
-  strength: must stop with ``StressNotReachableError``), ``tension`` (sigma_1 < 0: must
-  stop with ``StressNotReachableError``), ``reload`` (sigma_1 to sigma_n, to 0 and back under
-  stress control: the predictor from an unloaded interface must not run away) and
-  ``seat_load`` (sigma_1 to 1 mPa, then to sigma_n),
+* the **matrix** (:data:`CASES`): each case changes the R1 (or S1) set of Table 1 towards an
+  edge of the parameter space, alone and combined, and runs load paths (:data:`PATHS`,
+  :func:`build_path`) for the laws ``paper`` and ``mdr``; a run must finish with finite
+  results or stop with the named exception of :func:`expected`;
+* the **hostile inputs** (:data:`HOSTILE`): output paths that cannot be written, seeds the
+  output cannot store, damaged and forged checkpoints (:mod:`asperity_sim.testing`), a
+  checkpoint of another run, a kill during a checkpoint write.  Each states its expected
+  outcome: the name of the exception that must refuse it before any work, or ``same bits``
+  (the run resumes bit-identically to an uninterrupted one).
 
-for the laws ``paper`` and ``mdr``.  d is the larger of the 15 % height quantile and 0.6
-mean heights (so about 15 % of the asperities touch at the end of the closure step, as for
-R1 at the paper's 15 um) and sigma_n the ``paper`` stress at Delta = (d, 0, 0) unless the
-case prescribes it (1 Pa, or the stress at which theta_m(c, R_m) reaches pi/2).  The cases:
-:data:`CASES` (each with a note saying what it probes); ``--quick`` keeps those marked quick,
-which is also the fast matrix run by ``tests/test_stability.py``.
-
-Per run it records: outcome (``complete`` or the exception's class name) against the
-expected one, every increment converged, Newton iterations (max, mean), the largest and
-the final scaled residual, cut-backs, whether any output (data variable or numeric
-attribute, also of the partial dataset of a failed run) is NaN or inf, the message, the
-wall time.  Each run has a soft wall-time limit (``simulate(max_wall_time=...)``, a named
-``WallTimeExceededError``) and runs in a worker process killed at a hard limit, so a hang
-inside a kernel is recorded too.
-
-Relations: SPEC §1–§7 only; nothing is compared with a reference here (the physics is
-tested elsewhere): this is about robustness.
-
-Run:   python scenarios/stability.py [--n 2000] [--quick] [--no-big] [--only SUBSTRING]
-Writes outputs/stability.nc (one record per run) and outputs/stability.md (the tables for
-the README: one row per case, then one row per run).
-Expected run time: about 3-5 minutes on 2 cores (the six 1e7-asperity runs take most of it);
-``--quick`` (no 1e7 case, 3 increments per stage) about 1 minute.
+Every case runs in a worker process (:class:`Worker`) killed at a hard time limit, so a hang
+or a crash inside a kernel is recorded as an outcome too.  Nothing here is compared with a
+reference: the physics is tested elsewhere; this is about robustness.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import multiprocessing as mp
+import os
+import shutil
+import signal
+import subprocess
 import sys
+import tempfile
 import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import parse_args  # noqa: E402
 
 LAWS = ("paper", "mdr")
 PATHS = ("three_step", "cns", "cyclic", "zero_load", "stress_shear", "above_strength", "tension", "reload",
@@ -324,7 +306,8 @@ def _worker(conn):
         if job is None:
             return
         try:
-            conn.send(run_one(*job))
+            function, *args = job
+            conn.send(function(*args))
         except BaseException as err:  # noqa: B036 - reported to the parent, never lost
             conn.send({"outcome": type(err).__name__, "message": str(err)})
 
@@ -345,7 +328,8 @@ class Worker:
             raise RuntimeError("the stability worker process did not start")
 
     def run(self, job, hard_limit):
-        """The job's record, or ``{"outcome", "message"}`` when the worker was killed or died."""
+        """``job[0](*job[1:])`` in the worker (a module-level function and its arguments): its record, or
+        ``{"outcome", "message"}`` when the worker was killed or died."""
         self.conn.send(job)
         if self.conn.poll(hard_limit):
             try:
@@ -391,9 +375,9 @@ def run_matrix(runs, n, seed, inc, soft_limit, hard_limit, in_process=False, log
     worker = None if in_process else Worker()
     try:
         for i, (case, kind, law) in enumerate(runs, 1):
-            job = (case, kind, law, case.n or n, seed, case.inc or inc, soft_limit)
+            job = (run_one, case, kind, law, case.n or n, seed, case.inc or inc, soft_limit)
             t0 = time.perf_counter()
-            rec = run_one(*job) if in_process else worker.run(job, hard_limit)
+            rec = run_one(*job[1:]) if in_process else worker.run(job, hard_limit)
             if "case" not in rec:  # killed at the hard limit, or died: record why
                 rec = {**empty_record(case, kind, law, case.n or n), **rec, "wall_time_s": time.perf_counter() - t0}
             records.append(rec)
@@ -478,58 +462,385 @@ def markdown(records, header):
     return "\n".join(lines) + "\n"
 
 
-def _extra(p):
-    p.add_argument("--no-big", action="store_true", help="skip the 1e7-asperity cases")
-    p.add_argument("--only", action="append", default=None, help="run only cases whose name contains this")
-    p.add_argument("--soft-limit", type=float, default=60.0, help="wall-time limit per run [s] (default 60)")
-    p.add_argument("--hard-limit", type=float, default=180.0,
-                   help="worker killed after this many seconds per run [s] (default 180)")
-    p.add_argument("--in-process", action="store_true", help="no worker process (no hard limit)")
 
 
-def main(argv=None):
-    from asperity_sim import __version__
-    from asperity_sim.io import write_netcdf
-    from asperity_sim.params import check_real
-    from asperity_sim.solver import SolverSettings
+# --------------------------------------------------------------------------- hostile inputs and checkpoints
 
-    args = parse_args(__doc__.splitlines()[0], n_default=2000, argv=argv, extra=_extra)
-    for name in ("soft_limit", "hard_limit"):
+SAME = "same bits"  # the run resumes bit-identically to an uninterrupted one
+SKIPPED = "skipped"
+
+
+@dataclass(frozen=True)
+class Hostile:
+    """One hostile input: what is done (:data:`PROBES`), with which law, and what it must end with."""
+
+    name: str
+    probe: str                      # key of PROBES
+    law: str = "paper"
+    expected: str = "ValueError"    # exception class name, or SAME
+    quick: bool = True              # part of the tests' fast subset
+    note: str = ""
+
+
+def _tiny_path():
+    from asperity_sim.paths import LoadPath, Stage
+
+    S, D = "s", "d"
+    return LoadPath((Stage((S, D, D), (300e6, 0, 0), 3, name="normal"),
+                     Stage((S, D, D), (300e6, 4e-6, 0), 3, name="shear"),
+                     Stage((S, D, D), (300e6, -2e-6, 1e-6), 4, adaptive=True, max_fraction=0.5, name="reverse")),
+                    name="tiny")
+
+
+def _run_kw(law):
+    return dict(n=200, seed=4, law=law, k=4, snapshots=[0, 4])
+
+
+class _Stop(Exception):
+    pass
+
+
+def _stop_at(step_to_stop):
+    def progress(stage, n_stages, fraction, step, iterations):
+        if step == step_to_stop:
+            raise _Stop(step)
+    return progress
+
+
+_BASE = {}
+
+
+def base_run(law, folder):
+    """(checkpoint bytes at step 5, uninterrupted dataset) of a tiny S1 run (n = 200), cached per process."""
+    import asperity_sim as asim
+
+    if law not in _BASE:
+        ck = Path(folder) / f"base-{law}.npz"
         try:
-            check_real(f"--{name.replace('_', '-')} [s]", getattr(args, name), 0.0, None, lo_open=True)
-        except ValueError as err:
-            print(f"stability.py: error: {err}", file=sys.stderr)
-            raise SystemExit(2)
-    inc = args.increments or (3 if args.quick else 6)
-    runs = select_runs(quick=args.quick, big=not args.no_big, only=args.only)
-    if not runs:
-        print(f"stability.py: error: --only {args.only} selects no case", file=sys.stderr)
-        raise SystemExit(2)
+            asim.simulate(asim.presets.S1, _tiny_path(), checkpoint=ck, checkpoint_every=1, progress=_stop_at(5),
+                          **_run_kw(law))
+        except _Stop:
+            pass
+        _BASE[law] = (ck.read_bytes(), asim.simulate(asim.presets.S1, _tiny_path(), **_run_kw(law)))
+        ck.unlink()
+    return _BASE[law]
+
+
+def _tiny(folder, **kw):
+    """A tiny run whose progress callback fails the probe if any increment is computed."""
+    import asperity_sim as asim
+
+    def no_work(*args):
+        raise AssertionError("an increment was computed before the input was refused")
+
+    return asim.simulate(asim.presets.S1, _tiny_path(), **{**_run_kw("paper"), "progress": no_work, **kw})
+
+
+def _resumed(law, folder, path, **kw):
+    """SAME if resuming ``path`` gives the uninterrupted run's bits, else what differs."""
+    import asperity_sim as asim
+    from asperity_sim.testing import same_run
+
+    ds = asim.resume(path, checkpoint_every=None, **kw)
+    return SAME if same_run(base_run(law, folder)[1], ds) else "resumed to different bits"
+
+
+def _forged(law, folder, change):
+    """Resume a copy of the base checkpoint with arrays rewritten by ``change(arrays)`` (valid checksums)."""
+    from asperity_sim.testing import arrays_of, write_checkpoint
+
+    raw, _ = base_run(law, folder)
+    arrays = arrays_of(raw)
+    path = write_checkpoint(folder / "forged.npz", arrays, change(arrays))
+    return _resumed(law, folder, path)
+
+
+def _with_nan(a, index=0):
+    a = a.astype(np.float64 if a.dtype.kind != "f" else a.dtype, copy=True)
+    a.flat[index] = np.nan
+    return a
+
+
+def probe_output_folder(law, folder):
+    (folder / "a folder.nc").mkdir()
+    return _tiny(folder, output=folder / "a folder.nc", law=law)
+
+
+def probe_output_under_file(law, folder):
+    (folder / "plain").write_text("a file")
+    return _tiny(folder, output=folder / "plain" / "out.nc", law=law)
+
+
+def probe_output_unwritable(law, folder):
+    ro = folder / "read-only"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if os.access(ro, os.W_OK):  # root (or a file system without permissions) writes anyway
+            return SKIPPED, "the folder stays writable for this user (running as root): nothing to refuse"
+        return _tiny(folder, output=ro / "out.nc", law=law)
+    finally:
+        ro.chmod(0o755)
+
+
+def probe_output_is_checkpoint(law, folder):
+    return _tiny(folder, output=folder / "same.npz", checkpoint=folder / "same.npz", law=law)
+
+
+def probe_resume_output_is_checkpoint(law, folder):
+    import asperity_sim as asim
+
+    raw, _ = base_run(law, folder)
+    ck = folder / "ck.npz"
+    ck.write_bytes(raw)
+    asim.resume(ck, output=ck)
+    return "resumed over its own checkpoint"
+
+
+def probe_existing_output(law, folder):
+    """``asperity-sim run`` onto an existing file without ``--overwrite``: exit 1, the file untouched."""
+    from asperity_sim import cli
+
+    scene = folder / "small.toml"
+    scene.write_text(f'title = "hostile"\n[parameters]\npreset = "S1"\n[run]\nn = 200\nseed = 3\nlaw = "{law}"\n'
+                     '[[path.stages]]\nincrements = 2\nDelta_1 = "2 um"\nDelta_2 = "0 um"\nDelta_3 = "0 um"\n')
+    out = folder / "existing.nc"
+    out.write_bytes(b"an earlier result")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = cli.main(["run", str(scene), "-o", str(out), "--quiet"])
+    kept = out.read_bytes() == b"an earlier result"
+    return f"exit {code}, file {'unchanged' if kept else 'overwritten'}", err.getvalue().strip()
+
+
+def probe_seed_huge(law, folder):
+    return _tiny(folder, seed=2**63, law=law)
+
+
+def probe_seed_negative(law, folder):
+    return _tiny(folder, seed=-1, law=law)
+
+
+def probe_truncated(law, folder):
+    raw, _ = base_run(law, folder)
+    path = folder / "truncated.npz"
+    path.write_bytes(raw[: len(raw) // 2])
+    return _resumed(law, folder, path)
+
+
+def probe_bit_flip(law, folder):
+    from asperity_sim.testing import flip_bit, member_data_offset
+
+    raw, _ = base_run(law, folder)
+    path = folder / "flipped.npz"
+    path.write_bytes(flip_bit(raw, member_data_offset(raw, "pop_R.npy") + 200, 3))  # inside the radii: bad CRC
+    return _resumed(law, folder, path)
+
+
+def probe_intact(law, folder):
+    raw, _ = base_run(law, folder)
+    path = folder / "intact.npz"
+    path.write_bytes(raw)
+    return _resumed(law, folder, path)
+
+
+def probe_nan_state(law, folder):
+    def change(a):
+        if "state_law0" in a:  # history law: a spring of the first contact
+            return {"state_law0": _with_nan(a["state_law0"])}
+        return {"state_delta_c": _with_nan(a["state_delta_c"])}  # path-independent law: the committed Delta
+    return _forged(law, folder, change)
+
+
+def probe_unsorted_heights(law, folder):
+    return _forged(law, folder, lambda a: {"pop_r": a["pop_r"][::-1].copy()})
+
+
+def probe_slot_index(law, folder):
+    def change(a):
+        if "state_asp" in a:  # history law: a slot pointing past the last asperity
+            asp = a["state_asp"].copy()
+            asp[0] = a["pop_r"].size
+            return {"state_asp": asp}
+        return {"pos_i": np.array([99, 1], dtype=np.int64)}  # path-independent law: a stage index past the path
+    return _forged(law, folder, change)
+
+
+def probe_other_law(law, folder):
+    import asperity_sim as asim
+
+    raw, _ = base_run(law, folder)
+    ck = folder / "ck.npz"
+    ck.write_bytes(raw)
+    other = next(name for name in LAWS if name != law)
+    asim.simulate(asim.presets.S1, _tiny_path(), resume=ck, **{**_run_kw(law), "law": other})
+    return "resumed under another law"
+
+
+def probe_other_path(law, folder):
+    import asperity_sim as asim
+    from asperity_sim import paths
+
+    raw, _ = base_run(law, folder)
+    ck = folder / "ck.npz"
+    ck.write_bytes(raw)
+    asim.simulate(asim.presets.S1, paths.three_step(10e-6, increments=3), resume=ck, **_run_kw(law))
+    return "resumed on another path"
+
+
+KILLED_WRITER = """
+import os, signal, sys
+import asperity_sim as asim
+from asperity_sim import checkpoint
+from asperity_sim.stability import _run_kw, _tiny_path
+real, calls = os.replace, []
+def replace(src, dst):
+    calls.append(src)
+    if len(calls) == 3:
+        os.kill(os.getpid(), signal.SIGKILL)  # the third checkpoint is written in full, then killed before its rename
+    real(src, dst)
+checkpoint.os.replace = replace
+asim.simulate(asim.presets.S1, _tiny_path(), checkpoint=sys.argv[1], checkpoint_every=1, **_run_kw(sys.argv[2]))
+"""
+
+
+def probe_killed_write(law, folder):
+    """SIGKILL between a checkpoint's write and its rename: the next run removes the stale temporary and resumes."""
+    import asperity_sim
+
+    ck = folder / "killed.npz"
+    package_root = os.path.dirname(os.path.dirname(asperity_sim.__file__))  # the child imports this same package
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
+    child = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(ck), law], capture_output=True, text=True,
+                           timeout=300, env=env)
+    if child.returncode != -signal.SIGKILL:
+        return f"the writer was not killed (exit {child.returncode})", child.stderr[-400:]
+    stale = [p.name for p in folder.iterdir() if p.name.endswith(".tmp")]
+    if not stale:
+        return "no temporary was left by the kill (nothing tested)", ""
+    outcome = _resumed(law, folder, ck)
+    left = [p.name for p in folder.iterdir() if p.name.endswith(".tmp")]
+    if left:
+        return f"{outcome}, but temporaries remain: {left}", ""
+    return outcome, (f"the kill left {len(stale)} temporary file (.{ck.name}.<pid>.<random>.tmp) next to the intact "
+                     "checkpoint; the resumed run removed it and finished")
+
+
+PROBES = {name.removeprefix("probe_"): f for name, f in dict(globals()).items() if name.startswith("probe_")}
+
+HOSTILE = (
+    Hostile("output is an existing folder", "output_folder", note="refused before any work"),
+    Hostile("output under a regular file", "output_under_file"),
+    Hostile("output in a folder without write permission", "output_unwritable",
+            note="skipped where the user can write anyway (root)"),
+    Hostile("output equal to the checkpoint", "output_is_checkpoint"),
+    Hostile("resume with output equal to its checkpoint", "resume_output_is_checkpoint"),
+    Hostile("existing output without --overwrite (asperity-sim run)", "existing_output",
+            expected="exit 1, file unchanged"),
+    Hostile("seed = 2^63", "seed_huge", note="the output stores a signed 64-bit seed"),
+    Hostile("seed = -1", "seed_negative"),
+    *(h for law, first in zip(LAWS, (True, False)) for h in (
+        Hostile("intact checkpoint (control)", "intact", law, SAME),
+        Hostile("checkpoint truncated to half", "truncated", law, "CheckpointError"),
+        Hostile("checkpoint with a flipped bit (CRC-32 fails)", "bit_flip", law, "CheckpointError"),
+        Hostile("forged: NaN in the committed state, valid checksum", "nan_state", law, "CheckpointError"),
+        Hostile("forged: heights unsorted, valid checksum", "unsorted_heights", law, "CheckpointError"),
+        Hostile("forged: index out of range, valid checksum", "slot_index", law, "CheckpointError",
+                note="mdr: a contact slot naming asperity n; paper: stage index 99"),
+        Hostile("resume under another law", "other_law", law, "CheckpointError", quick=first),
+        Hostile("resume on another load path", "other_path", law, "CheckpointError", quick=first),
+        Hostile("killed during a checkpoint write, then resumed", "killed_write", law, SAME, quick=False,
+                note="SIGKILL between the write and the rename of the third checkpoint"),
+    )),
+)
+
+
+def run_hostile(case, folder=None):
+    """Run one hostile case in a fresh folder; its record (case, law, expected, outcome, message, wall time)."""
+    rec = {"case": case.name, "law": case.law, "expected": case.expected, "outcome": "", "message": "",
+           "wall_time_s": 0.0}
+    folder = Path(tempfile.mkdtemp(prefix="hostile-", dir=folder))
     t0 = time.perf_counter()
-    records = run_matrix(runs, args.n, args.seed, inc, args.soft_limit, args.hard_limit, args.in_process)
-    total = time.perf_counter() - t0
-    s = SolverSettings()
-    cap = s.max_iter + s.max_expansions + 2 * s.max_iter  # scalar search + multi-component solve and its restart
+    try:
+        base_run(case.law, folder)  # not timed as part of the case
+        t0 = time.perf_counter()
+        result = PROBES[case.probe](case.law, folder)
+        rec["outcome"], rec["message"] = result if isinstance(result, tuple) else (result, "")
+        if not isinstance(rec["outcome"], str):  # a probe that returned a dataset: the input was accepted
+            rec["outcome"], rec["message"] = "complete", "the input was accepted and the run completed"
+    except Exception as err:  # noqa: BLE001 - the outcome is the exception's name
+        rec["outcome"], rec["message"] = type(err).__name__, str(err)
+        if isinstance(err, AssertionError):
+            rec["message"] += " | " + traceback.format_exc(limit=3)
+    finally:
+        rec["wall_time_s"] = time.perf_counter() - t0
+        shutil.rmtree(folder, ignore_errors=True)
+    rec["message"] = rec["message"].replace(str(folder), "<folder>")  # the same text on every run
+    return rec
+
+
+def hostile_verdict(rec):
+    """'pass' (the expected outcome, with a message if refused), 'skipped' (with why), or 'FAIL: ...'."""
+    if rec["outcome"] == SKIPPED:
+        return "skipped" if rec["message"] else "FAIL: skipped without a reason"
+    if rec["outcome"] != rec["expected"]:
+        return f"FAIL: {rec['outcome']}"
+    if rec["expected"].endswith("Error") and not rec["message"]:
+        return "FAIL: no message"
+    if rec["expected"] == "CheckpointError" and "checkpoint '" not in rec["message"]:
+        return "FAIL: the message does not name the file"
+    return "pass"
+
+
+def select_hostile(quick=False, only=None):
+    return [h for h in HOSTILE if (h.quick or not quick)
+            and (not only or any(s.lower() in h.name.lower() for s in only))]
+
+
+def run_hostile_table(cases, hard_limit, in_process=False, log=print):
+    records = []
+    worker = None if in_process else Worker()
+    try:
+        for i, case in enumerate(cases, 1):
+            t0 = time.perf_counter()
+            rec = run_hostile(case) if in_process else worker.run((run_hostile, case), hard_limit)
+            if "case" not in rec:  # killed at the hard limit, or died
+                rec = {"case": case.name, "law": case.law, "expected": case.expected, **rec,
+                       "wall_time_s": time.perf_counter() - t0}
+            rec["verdict"] = hostile_verdict(rec)
+            records.append(rec)
+            log(f"[{i:3d}/{len(cases)}] {case.name:58s} {case.law:5s} {rec['outcome']:24s} {rec['verdict']:8s} "
+                f"{rec['wall_time_s']:6.2f} s")
+    finally:
+        if worker is not None:
+            worker.close()
+    return records
+
+
+def hostile_markdown(records, header):
+    lines = [header, "",
+             "Expected: the exception that must refuse the input (before any work for the output and seed rows), "
+             f"or `{SAME}` (resumed bit-identically to an uninterrupted run).", "",
+             "| case | law | expected | outcome | verdict | wall [s] |", "|---|---|---|---|---|---|"]
     for r in records:
-        r["verdict"] = verdict(r, cap)
-    n_pass = sum(r["verdict"] == "pass" for r in records)
-    header = (f"Stability matrix: {len(records)} runs, {n_pass} pass, n = {args.n} unless stated, "
-              f"{inc} increments per stage (asperity_sim {__version__}, {total:.0f} s on this machine)")
-    attrs = {"title": "asperity_sim stability matrix", "source": f"asperity_sim {__version__}",
-             "Conventions": "CF-1.8", "n_default": args.n, "seed": args.seed, "increments": inc,
-             "total_wall_time_s": total, "runs_passed": n_pass, "runs": len(records)}
-    args.outdir.mkdir(parents=True, exist_ok=True)
-    nc = write_netcdf(to_dataset(records, attrs), args.outdir / "stability.nc")
-    md = args.outdir / "stability.md"
-    text = markdown(records, header)
-    tmp = md.with_name(f".{md.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(md)
-    print()
-    print(text)
-    print(f"wrote {nc}, {md}")
-    return 0 if n_pass == len(records) else 1
+        lines.append(f"| {r['case']} | {r['law']} | {r['expected']} | {r['outcome']} | {r['verdict']} | "
+                     f"{r['wall_time_s']:.2f} |")
+    lines += ["", "Messages:", ""]
+    for r in records:
+        if r["message"]:
+            lines.append(f"- {r['case']}, {r['law']}: {r['message'][:300]}")
+    return "\n".join(lines) + "\n"
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def hostile_dataset(records):
+    import xarray as xr
+
+    long = {"case": "hostile input", "law": "asperity law", "expected": "expected outcome",
+            "outcome": "outcome (exception class, same bits, ...)", "message": "message of the outcome",
+            "wall_time_s": "wall time", "verdict": "pass, skipped (and why), or why not"}
+    data = {}
+    for k, name in long.items():
+        v = [r[k] for r in records]
+        attrs = {"long_name": name, **({"units": "s"} if k == "wall_time_s" else {})}
+        data[f"hostile_{k}"] = ("hostile", np.array(v, dtype=float if k == "wall_time_s" else str), attrs)
+    return xr.Dataset(data, coords={"hostile": np.arange(len(records))})
