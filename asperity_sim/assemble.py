@@ -296,6 +296,116 @@ X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
 N_IN = 5
 
 
+# per-slot geometry of a block of committed contacts, one row of BLOCK each: inputs (Delta_1 - r, cos phi,
+# sin phi, R, u), then delta_n, delta_s, the local increment (normal, s, t), cos/sin theta, theta, d theta/d Delta_1
+G_X, G_CP, G_SP, G_R, G_U, G_DN, G_DS, G_RHO, G_DDS, G_DDT, G_CT, G_ST, G_TH, G_TH1 = range(14)
+N_GEO = 14
+
+
+@numba.njit(cache=True, inline="always")
+def gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi):
+    """Copy the inputs of slots b0..b0+m into ``geo``, contiguous; a free slot gets inputs out of contact."""
+    for i in range(m):
+        j = asp[b0 + i]
+        if j < 0:
+            geo[G_X, i], geo[G_CP, i], geo[G_SP, i], geo[G_R, i], geo[G_U, i] = -1.0, 1.0, 0.0, 1.0, 0.0
+            continue
+        geo[G_X, i] = d1 - r[j]
+        geo[G_CP, i] = cos_phi[j]
+        geo[G_SP, i] = sin_phi[j]
+        geo[G_R, i] = R[j]
+        geo[G_U, i] = u[j]
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e):
+    """Column i of ``geo``: overlap, local displacement and increment of a committed contact, policy follow.
+
+    Branch-free (series trigonometry of :func:`follow_angle`), so that the loop vectorises; the
+    angle is theta = (2/pi) u theta_m(c, R) (SPEC §3) and the frame that of SPEC §4.
+    """
+    x, cp, sp = geo[G_X, i], geo[G_CP, i], geo[G_SP, i]
+    th, st, ct, inv_R, y, yc, scale = follow_angle(geo[G_R, i], geo[G_U, i], closure, k_e)
+    shear_ph = cp * d2 + sp * d3
+    dn = ct * x + st * shear_ph
+    inc_ph = cp * D1 + sp * D2
+    geo[G_DN, i] = dn
+    geo[G_DS, i] = -st * x + ct * shear_ph
+    geo[G_RHO, i] = ct * D0 + st * inc_ph
+    geo[G_DDS, i] = -st * D0 + ct * inc_ph
+    geo[G_DDT, i] = -sp * D1 + cp * D2
+    geo[G_CT, i] = ct
+    geo[G_ST, i] = st
+    geo[G_TH, i] = th
+    geo[G_TH1, i] = follow_slope(dn > 0.0, y, yc, scale, k_e, inv_R, dc)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def slot_values(vals, i, geo, out):
+    """Column i of ``vals`` (as :func:`values_follow`) from the law's values ``out`` of a committed contact."""
+    touch = geo[G_DN, i] > 0.0
+    o = (out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i], out[6, i], out[7, i], out[8, i],
+         out[9, i], out[10, i], out[11, i], out[12, i])
+    g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(
+        geo[G_CT, i], geo[G_ST, i], geo[G_CP, i], geo[G_SP, i], o, geo[G_DS, i], geo[G_RHO, i], geo[G_TH1, i])
+    code = out[12, i]
+    vals[V_G * BLOCK + i] = g0 if touch else 0.0
+    vals[(V_G + 1) * BLOCK + i] = g1 if touch else 0.0
+    vals[(V_G + 2) * BLOCK + i] = g2 if touch else 0.0
+    vals[V_T * BLOCK + i] = T0 if touch else 0.0
+    vals[(V_T + 1) * BLOCK + i] = T1 if touch else 0.0
+    vals[(V_T + 2) * BLOCK + i] = T2 if touch else 0.0
+    vals[(V_T + 3) * BLOCK + i] = T3 if touch else 0.0
+    vals[(V_T + 4) * BLOCK + i] = T4 if touch else 0.0
+    vals[(V_T + 5) * BLOCK + i] = T5 if touch else 0.0
+    vals[(V_T + 6) * BLOCK + i] = T6 if touch else 0.0
+    vals[(V_T + 7) * BLOCK + i] = T7 if touch else 0.0
+    vals[(V_T + 8) * BLOCK + i] = T8 if touch else 0.0
+    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
+    vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
+    vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
+    vals[V_TH * BLOCK + i] = geo[G_TH, i] if touch else 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def add_values(vals, m, acc):
+    """Add columns 0..m of ``vals`` to the sums ``acc`` (N_ACC), in order."""
+    F0, F1, F2 = acc[I_F], acc[I_F + 1], acc[I_F + 2]
+    P00, P11, P22, P01, P02, P12 = acc[I_FF], acc[I_FF + 1], acc[I_FF + 2], acc[I_FF + 3], acc[I_FF + 4], acc[I_FF + 5]
+    T0, T1, T2, T3, T4 = acc[I_T], acc[I_T + 1], acc[I_T + 2], acc[I_T + 3], acc[I_T + 4]
+    T5, T6, T7, T8 = acc[I_T + 5], acc[I_T + 6], acc[I_T + 7], acc[I_T + 8]
+    n_c, n_s, n_p, th_sum = acc[I_NC], acc[I_NS], acc[I_NP], acc[I_TH]
+    for i in range(m):
+        g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
+        F0 += g0
+        F1 += g1
+        F2 += g2
+        P00 += g0 * g0
+        P11 += g1 * g1
+        P22 += g2 * g2
+        P01 += g0 * g1
+        P02 += g0 * g2
+        P12 += g1 * g2
+        T0 += vals[V_T * BLOCK + i]
+        T1 += vals[(V_T + 1) * BLOCK + i]
+        T2 += vals[(V_T + 2) * BLOCK + i]
+        T3 += vals[(V_T + 3) * BLOCK + i]
+        T4 += vals[(V_T + 4) * BLOCK + i]
+        T5 += vals[(V_T + 5) * BLOCK + i]
+        T6 += vals[(V_T + 6) * BLOCK + i]
+        T7 += vals[(V_T + 7) * BLOCK + i]
+        T8 += vals[(V_T + 8) * BLOCK + i]
+        n_c += vals[V_NC * BLOCK + i]
+        n_s += vals[V_NS * BLOCK + i]
+        n_p += vals[V_NP * BLOCK + i]
+        th_sum += vals[V_TH * BLOCK + i]
+    acc[I_F], acc[I_F + 1], acc[I_F + 2] = F0, F1, F2
+    acc[I_FF], acc[I_FF + 1], acc[I_FF + 2], acc[I_FF + 3], acc[I_FF + 4], acc[I_FF + 5] = P00, P11, P22, P01, P02, P12
+    acc[I_T], acc[I_T + 1], acc[I_T + 2], acc[I_T + 3], acc[I_T + 4] = T0, T1, T2, T3, T4
+    acc[I_T + 5], acc[I_T + 6], acc[I_T + 7], acc[I_T + 8] = T5, T6, T7, T8
+    acc[I_NC], acc[I_NS], acc[I_NP], acc[I_TH] = n_c, n_s, n_p, th_sum
+
+
 # ---- templates: compiled once per law by :func:`kernels` (the names ``local``, ``trial`` and
 # ``commit_law`` are the law's kernels there; each template name is its own compiled copy) ----
 
@@ -507,7 +617,12 @@ def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_bir
 
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
               theta_birth, partial):
-    """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only)."""
+    """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only).
+
+    Under policy follow, per block of BLOCK slots: their inputs gathered contiguous, their
+    geometry in a loop that LLVM vectorises (:func:`slot_geometry`), the law's trial per contact,
+    then their global force and tangent in a vectorised loop and the sums in slot order.
+    """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
@@ -515,20 +630,45 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_ACC)
-        for sl in range(ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)):
-            j = asp[sl]
-            if j < 0:
-                continue
-            cp, sp = cos_phi[j], sin_phi[j]
-            th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
-            ct, st = math.cos(th), math.sin(th)
-            dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
-            if dn <= 0.0:
-                continue
-            rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
-            accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False), ds,
-                       rho, th1)
-            acc[I_TH] += th
+        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
+        if has_birth:
+            for sl in range(lo, hi):
+                j = asp[sl]
+                if j < 0:
+                    continue
+                cp, sp = cos_phi[j], sin_phi[j]
+                th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth,
+                                        has_birth)
+                ct, st = math.cos(th), math.sin(th)
+                dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+                if dn <= 0.0:
+                    continue
+                rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+                accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False),
+                           ds, rho, th1)
+                acc[I_TH] += th
+            partial[ic, :] = acc
+            continue
+        geo = np.empty((N_GEO, BLOCK))
+        out = np.empty((13, BLOCK))
+        vals = np.empty(N_VAL * BLOCK)
+        for b0 in range(lo, hi, BLOCK):
+            m = min(hi, b0 + BLOCK) - b0
+            gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
+            for i in range(m):  # vectorised
+                slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
+            for i in range(m):  # the law, per contact in contact
+                if geo[G_DN, i] > 0.0:
+                    o = trial(geo[G_DN, i], geo[G_DDS, i], geo[G_DDT, i], dn_c[b0 + i], 0.0, geo[G_R, i], consts,
+                              arrays, b0 + i, False)
+                    for a in range(13):
+                        out[a, i] = o[a]
+                else:
+                    for a in range(13):
+                        out[a, i] = 0.0
+            for i in range(m):  # vectorised
+                slot_values(vals, i, geo, out)
+            add_values(vals, m, acc)
         partial[ic, :] = acc
 
 
@@ -575,6 +715,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
 
     A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
+    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
@@ -584,30 +725,47 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_COMMIT)
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
-        for sl in range(ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)):
-            j = asp[sl]
-            if j < 0:
-                continue
-            cp, sp = cos_phi[j], sin_phi[j]
-            th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
-            ct, st = math.cos(th), math.sin(th)
-            dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
-            _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
-            new, work, stored, diss, events = commit_law(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False,
-                                                         scratch)
-            acc[C_WORK] += work
-            acc[C_STORED] += stored
-            acc[C_DISS] += diss
-            acc[C_EVENTS] += events
-            acc[C_TR + 4 * code[sl] + new] += 1.0
-            if dn <= 0.0:
-                asp[sl] = -1
-                flag[j] = 0
-                dn_c[sl] = 0.0
-                code[sl] = 0
+        geo = np.empty((N_GEO, BLOCK))
+        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
+        for b0 in range(lo, hi, BLOCK):
+            m = min(hi, b0 + BLOCK) - b0
+            if has_birth:
+                for i in range(m):
+                    j = asp[b0 + i]
+                    if j < 0:
+                        continue
+                    cp, sp = cos_phi[j], sin_phi[j]
+                    th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth,
+                                          has_birth)
+                    ct, st = math.cos(th), math.sin(th)
+                    geo[G_DN, i], _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+                    _, geo[G_DDS, i], geo[G_DDT, i] = local_displacement(D0, D1, D2, ct, st, cp, sp)
+                    geo[G_R, i] = R[j]
             else:
-                dn_c[sl] = dn
-                code[sl] = new
+                gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
+                for i in range(m):  # vectorised
+                    slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
+            for i in range(m):
+                sl = b0 + i
+                j = asp[sl]
+                if j < 0:
+                    continue
+                dn = geo[G_DN, i]
+                new, work, stored, diss, events = commit_law(dn, geo[G_DDS, i], geo[G_DDT, i], dn_c[sl], 0.0,
+                                                             geo[G_R, i], consts, arrays, sl, False, scratch)
+                acc[C_WORK] += work
+                acc[C_STORED] += stored
+                acc[C_DISS] += diss
+                acc[C_EVENTS] += events
+                acc[C_TR + 4 * code[sl] + new] += 1.0
+                if dn <= 0.0:
+                    asp[sl] = -1
+                    flag[j] = 0
+                    dn_c[sl] = 0.0
+                    code[sl] = 0
+                else:
+                    dn_c[sl] = dn
+                    code[sl] = new
         partial[ic, :] = acc
 
 

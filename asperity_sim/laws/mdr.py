@@ -151,25 +151,30 @@ def add_spring(i, wcs, wct, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def spring_range(i0, i1, w, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q,
-                 w_out, write):
-    """Sums of :func:`add_spring` over springs i0 <= i < i1 (their committed vectors from ``w`` if ``held``)."""
+def spring_range(i0, i1, i_end, w, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r,
+                 can_stick, q, w_out, write):
+    """Sums of :func:`add_spring` over springs i0 <= i < i1 (their committed vectors from ``w`` if ``held``).
+
+    The loop runs to i_end >= i1 (whole vectors, no scalar remainder); springs i1.. add nothing
+    (with ``write`` their slots in ``w_out`` get values to be discarded).
+    """
     Fs = Ft = J10 = J11 = J12 = J20 = J22 = n_stick = work = stored_change = dissipation = 0.0
-    for i in range(i0, i1):
+    for i in range(i0, i_end):
         fs, ft, j10, j11, j12, j20, j22, st, wk, de, dd = add_spring(
             i, w[0, i] if held else 0.0, w[1, i] if held else 0.0, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt,
             lm, rho, drho, lm_r, can_stick, q, w_out, write)
-        Fs += fs
-        Ft += ft
-        J10 += j10
-        J11 += j11
-        J12 += j12
-        J20 += j20
-        J22 += j22
-        n_stick += st
-        work += wk
-        stored_change += de
-        dissipation += dd
+        inc = i < i1
+        Fs += fs if inc else 0.0
+        Ft += ft if inc else 0.0
+        J10 += j10 if inc else 0.0
+        J11 += j11 if inc else 0.0
+        J12 += j12 if inc else 0.0
+        J20 += j20 if inc else 0.0
+        J22 += j22 if inc else 0.0
+        n_stick += st if inc else 0.0
+        work += wk if inc else 0.0
+        stored_change += de if inc else 0.0
+        dissipation += dd if inc else 0.0
     return Fs, Ft, J10, J11, J12, J20, J22, n_stick, work, stored_change, dissipation
 
 
@@ -196,18 +201,19 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     n_mem = 0 if fresh else min(n_in, w.shape[1])
     # two branch-free loops that LLVM vectorises: stored springs, then springs without memory
     # (a stored spring with u_c <= 0 has memory only after coarsening, merged across the edge: it keeps it)
-    Fs, Ft, J10, J11, J12, J20, J22, n_stick, work, stored_change, dissipation = spring_range(
-        0, n_mem, w, True, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q, w_out, write)
+    # released first: the loops may write over the stored springs beyond those in contact
+    work, stored_change, dissipation = release(w, n_in, dn, dn_c, c, dds, ddt, q) if write and not fresh else (
+        0.0, 0.0, 0.0)
+    n_pad = min((n_mem + LANES - 1) // LANES * LANES, w.shape[1], w_out.shape[1] if write else w.shape[1])
+    Fs, Ft, J10, J11, J12, J20, J22, n_stick, wk, de, dd = spring_range(
+        0, n_mem, max(n_pad, n_mem), w, True, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r,
+        can_stick, q, w_out, write)
+    work, stored_change, dissipation = work + wk, stored_change + de, dissipation + dd
     fs, ft, j10, j11, j12, j20, j22, st, wk, de, dd = spring_range(
-        n_mem, n_in, w, False, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q, w_out,
-        write)
+        n_mem, n_in, n_in, w, False, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q,
+        w_out, write)
     Fs, Ft, J10, J11, J12, J20, J22 = Fs + fs, Ft + ft, J10 + j10, J11 + j11, J12 + j12, J20 + j20, J22 + j22
     n_stick, work, stored_change, dissipation = n_stick + st, work + wk, stored_change + de, dissipation + dd
-    if write and not fresh:
-        wk, de, dd = release(w, n_in, dn, dn_c, c, dds, ddt, q)
-        work += wk
-        stored_change += de
-        dissipation += dd
     Fs *= q
     Ft *= q
     J10, J11, J12, J20, J22 = q * J10, q * J11, q * J12, q * J20, q * J22
@@ -364,6 +370,15 @@ def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, 
     return springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, True)
 
 
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh):
+    """:func:`commit_springs` writing the new springs over the committed ones ``w`` (they must fit).
+
+    One array for both, so that LLVM sees each spring read before it is written and vectorises.
+    """
+    return springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w, True)
+
+
 @numba.njit(cache=True)
 def merge_pairs(w, n):
     """Coarsen n springs to ceil(n/2) by merging neighbours (spacing doubles), in place; w: (2, >= n).
@@ -410,22 +425,30 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
         return 0, wk - e_old, 0.0, dd, 0
     h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[sl])
     n_need = entering_tail(0, dn, dn_c, h * h / R)[0]
-    buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
-    _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs(
-        dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
-    code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
     coarsenings = 0
-    while n_springs > n_store:  # coarsen: the contact outgrew its springs
-        diss += q_unit * h * merge_pairs(buf, n_springs)
-        h *= 2.0
-        n_springs = (n_springs + 1) // 2
-        coarsenings += 1
     stored = 0.0
-    for i in range(n_store):
-        a, b = (buf[0, i], buf[1, i]) if i < n_springs else (0.0, 0.0)
-        w[0, i] = a
-        w[1, i] = b
-        stored += a * a + b * b
+    if n_need <= n_store:  # the new springs fit: written over the committed ones
+        _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs_in_place(
+            dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh)
+        code = state_code(n_springs, n_slip)
+        for i in range(n_springs):
+            stored += float(w[0, i]) ** 2 + float(w[1, i]) ** 2
+        w[:, n_springs:] = 0.0
+    else:
+        buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
+        _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs(
+            dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
+        code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
+        while n_springs > n_store:  # coarsen: the contact outgrew its springs
+            diss += q_unit * h * merge_pairs(buf, n_springs)
+            h *= 2.0
+            n_springs = (n_springs + 1) // 2
+            coarsenings += 1
+        for i in range(n_store):
+            a, b = (buf[0, i], buf[1, i]) if i < n_springs else (0.0, 0.0)
+            w[0, i] = a
+            w[1, i] = b
+            stored += a * a + b * b
     h_all[sl] = h
     e_new = hertz_energy(dn, R, E_star)
     return code, work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss, 1 if coarsenings else 0
