@@ -93,10 +93,10 @@ def test_progress_line_and_bar():
 
 
 BROKEN = {
-    "unknown unit": ('R_m = "50 uum"', "[parameters] R_m = '50 uum': unknown unit 'uum'; a length is needed"),
+    "unknown unit": ('R_m = "50 uum"', "[parameters] R_m = '50 uum': unknown unit 'uum'; expected a length (m)"),
     "negative value": ('R_sigma = "-1 um"', "[parameters] R_sigma = -1e-06 is out of range (valid range: >= 0)"),
     "unknown key": ("Rsigma = 1e-6", "[parameters] unknown key 'Rsigma'"),
-    "stress for a length": ('beta = "3 MPa"', "'MPa' is a stress unit; a length is needed"),
+    "stress for a length": ('beta = "3 MPa"', "[parameters] beta = '3 MPa': expected a length (m), got a stress (MPa)"),
 }
 
 
@@ -112,6 +112,15 @@ def test_broken_scene_one_line_exit_1_and_nothing_lost(case, tmp_path, capsys):
     assert message in err and str(scene) in err
     assert out.read_bytes() == b"previous results"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.toml", "result.nc"]
+
+
+def test_quoted_integer_is_not_an_integer(tmp_path, capsys):
+    scene = tmp_path / "quoted.toml"
+    scene.write_text(SMALL.replace("n = 400", 'n = "400"'))
+    assert cli.main(["run", str(scene)]) == cli.EXIT_INPUT
+    line = _one_error_line(capsys.readouterr().err, 1)
+    assert line.endswith(f"{scene}: [run] n = '400' is not an integer: write 400 without quotes "
+                         "(valid range: integer in [1, 2147483647])")
 
 
 def test_missing_fields(tmp_path, capsys):

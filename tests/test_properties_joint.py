@@ -247,11 +247,13 @@ def test_sweep_file_with_path_quantities_units_and_errors(tmp_path):
     assert sc.law == "mdr" and sc.n == 200 and sc.path.stages[-1].target[:2] == pytest.approx((10e6, 2e-6))
     for text, message in [
         ('sigma_n = ["-1 MPa"]', "sigma_n = -1000000.0 is out of range (valid range: > 0 Pa)"),
-        ('sigma_n = ["1 um"]', "'um' is a length unit; a stress is needed"),
-        ('direction = ["30 grad"]', "is not an angle"),
+        ('sigma_n = ["1 um"]', "sigma_n = '1 um': expected a stress (Pa), got a length (um)"),
+        ('direction = ["30 um"]', "direction = '30 um': expected an angle (rad), got a length (um)"),
+        ('direction = ["30"]', "direction = '30' has no unit"),
         ('cycles = [0]', "cycles = 0 is out of range (valid range: integer in [1, 1000])"),
         ('law = ["elastic"]', "law = 'elastic' is not known (valid: paper, mdr)"),
-        ('n = [1.5]', "n = 1.5 is out of range"),
+        ('n = [1.5]', "n = 1.5 is not an integer"),
+        ('n = ["100"]', "n = '100' is not an integer"),
         ('sigman = ["1 MPa"]', "unknown key 'sigman'"),
     ]:
         f.write_text(base + f"[sweep]\nreplicas = 1\n[sweep.grid]\n{text}\n")
