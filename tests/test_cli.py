@@ -80,16 +80,72 @@ def test_presets_lists_table1_with_units(capsys):
     assert "R_m        m" in out and "G          Pa" in out and "N          m-2" in out
 
 
-def test_progress_line_and_bar():
-    line = cli.progress_line([10, 30], 2, 2, 0.5, 25, 3, 1.5, width=10)
-    assert line.startswith("stage 2/2 [######....]  62%") and "step 25" in line and "Newton  3" in line
-    buf = io.StringIO()
-    from asperity_sim.scene import load_scene
+class _Terminal(io.StringIO):
+    """A text stream that says it is a terminal, to see what the progress bar draws."""
 
-    bar = cli.ProgressBar(load_scene(SHIPPED[0]).path, buf)
-    bar(1, 3, 1.0, 40, 2)
-    bar.close()
-    assert buf.getvalue().startswith("\rstage 1/3") and buf.getvalue().endswith("\n")
+    def isatty(self):
+        return True
+
+
+def test_run_progress_draws_stage_names_and_increments_on_a_terminal_only():
+    from asperity_sim import simulate
+    from asperity_sim.progress import RunProgress
+    from asperity_sim.scene import scene_from_dict, tomllib
+
+    scene = scene_from_dict(tomllib.loads(SMALL))
+    term, pipe = _Terminal(), io.StringIO()
+    with RunProgress(scene.path, term) as bar, RunProgress(scene.path, pipe) as quiet:
+        def both(*args):  # simulate's progress(stage, n_stages, fraction, step, iterations), unchanged
+            bar(*args)
+            quiet(*args)
+        simulate(scene.params, scene.path, n=300, seed=1, progress=both)
+        assert bar.bar.n == bar.total == 6
+    text = term.getvalue()
+    assert "stage 1/2 closure" in text and "stage 2/2 shear" in text and "6/6" in text and "Newton" in text
+    assert pipe.getvalue() == ""
+
+
+def test_count_progress_counts_runs_on_a_terminal_only():
+    from asperity_sim.progress import CountProgress
+
+    term, pipe = _Terminal(), io.StringIO()
+    for stream in (term, pipe):
+        with CountProgress("sweep", stream) as bar:
+            for done in (1, 2, 4):
+                bar(done, 4)
+    assert "sweep" in term.getvalue() and "4/4" in term.getvalue() and pipe.getvalue() == ""
+
+
+def test_piped_run_has_no_progress_and_a_terminal_has_the_bar(tmp_path):
+    import pty
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    command = [sys.executable, "-m", "asperity_sim", "run", str(scene)]
+    piped = subprocess.run(command + ["-o", str(tmp_path / "piped.nc")], capture_output=True, text=True, env=env,
+                           timeout=300)
+    assert piped.returncode == 0, piped.stderr
+    assert "stage" not in piped.stderr and "\r" not in piped.stderr and "it/s" not in piped.stderr
+    master, slave = pty.openpty()
+    try:
+        tty = subprocess.run(command + ["-o", str(tmp_path / "tty.nc")], stdout=subprocess.PIPE, stderr=slave,
+                             env=env, timeout=300)
+    finally:
+        os.close(slave)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # EIO: the terminal's other end is closed and everything was read
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(master)
+    drawn = b"".join(chunks).decode("utf-8", "replace")
+    assert tty.returncode == 0
+    assert "stage 2/2 shear" in drawn and "6/6" in drawn
 
 
 BROKEN = {
