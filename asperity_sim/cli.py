@@ -117,8 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Parameters, law, sample size, steps and convergence of a run (or sweep) file.")
     i.add_argument("file", type=Path, metavar="OUT.nc")
 
-    sub.add_parser("presets", parents=[common], help="list the parameter sets that ship (Table 1), with units",
-                   description="The parameter sets that ship (the paper's Table 1), with units.")
+    pr = sub.add_parser("presets", parents=[common], help="list the parameter sets that ship (Table 1), with units",
+                        description="The parameter sets that ship (the paper's Table 1): every parameter and "
+                                    "derived quantity with its unit.")
+    pr.add_argument("names", nargs="*", metavar="PRESET", help="only these presets (R1, S1, R2, S2; default: all)")
 
     s = sub.add_parser("sweep", parents=[common], help="run a grid of parameters and replicas (on Dask)",
                        description="Run the grid and replicas of SWEEP.toml and write one netCDF file.")
@@ -554,25 +556,46 @@ def _sweep_info(ds):
 
 # -- presets -----------------------------------------------------------------------
 
-def presets_text() -> str:
-    """The Table 1 parameter sets, one row per parameter, with SI units."""
-    from .params import InterfaceParams
-    from .presets import TABLE1
+def presets_text(names=None) -> str:
+    """The Table 1 parameter sets: every parameter and derived quantity with its unit.
 
-    names = list(TABLE1)
+    One block per preset, one line per quantity: ``beta = 3.52e-06 m  (3.52 um)``; a
+    dimensionless one is marked ``[-]``.  Units and long names come from the definitions in
+    :class:`asperity_sim.params.InterfaceParams` (field metadata and derived properties).
+    """
+    from .params import InterfaceParams
+    from .presets import TABLE1, TITLES
+    from .scene import format_quantity
+
     units, longs = InterfaceParams.units(), InterfaceParams.long_names()
-    head = f"{'parameter':10s} {'unit':5s} " + " ".join(f"{n:>11s}" for n in names) + "  meaning"
-    lines = ["Parameter sets (the paper's Table 1, SI units; e = 1, b = c = d = 0 per SPEC §1).",
-             "Use in a scene file: [parameters] preset = \"R1\", plus overrides such as R_m = \"50 um\".", "",
-             head, "-" * len(head)]
-    for field, unit in units.items():
-        vals = " ".join(f"{getattr(TABLE1[n], field):11.4g}" for n in names)
-        lines.append(f"{field:10s} {unit:5s} {vals}  {longs[field]}")
+    rows = [(name, units[name], longs[name]) for name in units]
+    derived = [(name, unit, long) for name, (unit, long) in InterfaceParams.derived_units().items()]
+
+    def line(params, name, unit, long):
+        v = getattr(params, name)
+        si = f"{v:.6g} {'[-]' if unit == '1' else unit}"
+        readable = format_quantity(v, unit) if unit in ("m", "Pa", "m-2") and v != 0.0 else ""
+        readable = f"({readable})" if readable and readable != si else ""
+        return f"  {name:8s} = {si:16s} {readable:16s} {long}"
+
+    lines = ["Parameter sets that ship (the paper's Table 1), in SI units; [-] is dimensionless.",
+             "Use in a scene file: [parameters] preset = \"R1\", plus overrides such as R_m = \"50 um\"."]
+    for preset in names or TABLE1:
+        params = TABLE1[preset]
+        lines += ["", f"{preset}: {TITLES.get(preset, '')}"]
+        lines += [line(params, *row) for row in rows]
+        lines.append("  derived:")
+        lines += [line(params, *row) for row in derived]
     return "\n".join(lines)
 
 
 def cmd_presets(args) -> int:
-    print(presets_text())
+    from .presets import TABLE1
+
+    for name in args.names:
+        if name not in TABLE1:
+            raise ValueError(f"preset {name!r} is not known (valid: {', '.join(TABLE1)})")
+    print(presets_text(args.names))
     return 0
 
 

@@ -72,12 +72,30 @@ def test_run_default_output_is_scene_name_in_cwd(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "figs" / "small.pdf").stat().st_size > 0
 
 
-def test_presets_lists_table1_with_units(capsys):
+def test_presets_print_every_parameter_with_its_unit(capsys):
+    import dataclasses
+    import re
+
+    from asperity_sim.params import InterfaceParams
+
     assert cli.main(["presets"]) == 0
     out = capsys.readouterr().out
-    for name in ("R1", "S1", "R2", "S2"):
-        assert name in out
-    assert "R_m        m" in out and "G          Pa" in out and "N          m-2" in out
+    blocks = out.split("\n\n")[1:]
+    assert [b.splitlines()[0].split(":")[0] for b in blocks] == ["R1", "S1", "R2", "S2"]
+    fields = [f.name for f in dataclasses.fields(InterfaceParams)]
+    for block in blocks:
+        quantities = dict(re.findall(r"^  (\w+) += (\S+ \S+)", block, re.M))
+        assert list(quantities) == fields + ["k_e", "E_star", "lam"]
+        assert all(q.split()[1] in ("m", "Pa", "m-2", "[-]") for q in quantities.values()), quantities
+    r1 = blocks[0]
+    assert "  beta     = 3.52e-06 m       (3.52 um)" in r1 and "  alpha    = 6.14 [-]" in r1
+    assert "  N        = 2e+08 m-2" in r1 and "  G        = 8e+10 Pa         (80 GPa)" in r1
+    assert f"  E_star   = {80e9 / (1 - 0.3):.6g} Pa" in r1  # G/(1-nu) of R1
+    assert cli.main(["presets", "S2"]) == 0
+    only = capsys.readouterr().out
+    assert "S2: smooth marble interface" in only and "R1:" not in only and "  nu       = 0.152 [-]" in only
+    assert cli.main(["presets", "R7"]) == cli.EXIT_INPUT
+    assert "preset 'R7' is not known (valid: R1, S1, R2, S2)" in _one_error_line(capsys.readouterr().err, 1)
 
 
 class _Terminal(io.StringIO):
