@@ -354,7 +354,7 @@ def test_power_law_fit_recovers_A_and_B():
     ("1 MPa:1 GPa:x:log", "count = 'x' is out of range"),
     ("1 MPa:1 GPa:4:cubic", "spacing = 'cubic' is not known (valid: log, lin)"),
     ("1 GPa:1 MPa:4:log", "start and stop are out of range (valid range: 0 < start < stop)"),
-    ("1 um:1 GPa:4:log", "--sigma-n start = '1 um': 'um' is a length unit; a stress is needed"),
+    ("1 um:1 GPa:4:log", "--sigma-n start = '1 um': expected a stress (Pa), got a length (um)"),
     ("1 MPa:1 GPa", "is not a range"),
     ("-5 MPa", "is out of range (valid range: > 0)"),
 ])
@@ -438,7 +438,7 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
         (["envelope", "cns.toml", "--sigma-n", "1 MPa:1 GPa:0:log"], "--sigma-n count = '0' is out of range"),
         (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--shear-stages", "9"], "--shear-stages = '9' is out of range"),
         (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--level", "1.5"], "--level = 1.5 is out of range"),
-        (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "'MPa' is a stress unit; a length is needed"),
+        (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "--amplitude = '1 MPa': expected a length (m), got a stress"),
         (["cyclic", "cns.toml", "--amplitude", "1 um", "--sigma-n", "-3 MPa"], "--sigma-n = '-3 MPa' is out of range"),
     ]:
         assert cli.main(argv) == cli.EXIT_INPUT
@@ -447,20 +447,16 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
-def test_joint_properties_scenario_quick(tmp_path, capsys):
-    import importlib
-    import sys
-
-    sys.path.insert(0, str(SCENARIOS))
-    module = importlib.import_module("joint_properties")
-    assert module.main(["--quick", "--n", "600", "--outdir", str(tmp_path)]) == 0
+def test_joint_properties_scenario_quick(tmp_path, run_script):
+    done = run_script("scenarios/joint_properties.py", "--quick", "--n", "600", "--outdir", tmp_path)
+    assert done.returncode == 0, done.stderr
     for name in ("R1", "S1"):
         for law in ("paper", "mdr"):
             for kind in ("envelope", "cyclic"):
                 for ext in ("nc", "csv", "png"):
                     assert (tmp_path / f"joint_{kind}_{name}_{law}.{ext}").stat().st_size > 0
     assert (tmp_path / "joint_properties.png").stat().st_size > 20_000
-    out = capsys.readouterr().out
+    out = done.stdout
     assert "R1 paper   at 500 MPa: k_s =" in out and "crossing mdr: S1 above R1 at first" in out
 
 
