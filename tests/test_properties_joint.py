@@ -460,6 +460,7 @@ def test_joint_properties_scenario_quick(tmp_path, run_script):
     assert "R1 paper   at 500 MPa: k_s =" in out and "crossing mdr: S1 above R1 at first" in out
 
 
+@pytest.mark.statistical
 def test_sweep_command_over_law_n_and_direction_then_info_and_plot(tmp_path, monkeypatch, capsys):
     """An isotropic interface (b = c = d = 0) resists shear the same in every direction (within Monte Carlo error)."""
     monkeypatch.chdir(tmp_path)

@@ -59,6 +59,7 @@ def fine_ratios():
     return _ratios(1024, 16, range(4))
 
 
+@pytest.mark.statistical
 @needs_st
 def test_summit_density_and_curvature_match_nayak(fine_ratios):
     for name, r in zip(("summit density", "mean curvature"), fine_ratios):
