@@ -84,6 +84,7 @@ def _in(root, *args):
                           env={**os.environ, "PYTHONPATH": str(root), "NUMBA_NUM_THREADS": "1"})
 
 
+@pytest.mark.slow  # two fresh Python processes per release
 @pytest.mark.parametrize("part, format_change", [("patch", False), ("minor", True)],
                          ids=["patch release", "minor release with a new checkpoint format"])
 def test_another_release_refuses_the_checkpoint_naming_both_versions(written, tmp_path, part, format_change):

@@ -134,6 +134,7 @@ def test_count_progress_counts_runs_on_a_terminal_only():
     assert "sweep" in term.getvalue() and "4/4" in term.getvalue() and pipe.getvalue() == ""
 
 
+@pytest.mark.slow
 def test_piped_run_has_no_progress_and_a_terminal_has_the_bar(tmp_path):
     import pty
 

@@ -342,6 +342,7 @@ def test_cli_fit_scene_runs(tmp_path):
 
 # -- BEM scenario -----------------------------------------------------------------------
 
+@pytest.mark.slow
 @needs_st
 def test_bem_scenario_quick(tmp_path, run_script):
     """scenarios/bem_closure.py at tiny size: outputs with units, BEM on the intended area range."""
