@@ -27,9 +27,12 @@ damaged file.  The file is written to a temporary name in the same folder, flush
 (fsync) and renamed over the final name, so a crash or SIGKILL never leaves a truncated
 checkpoint behind under the final name.
 
-A checkpoint is read back only by the same package version and the same format
-(:data:`FORMAT`); a checkpoint of another parameter set, path, law, ... than the run it is
-asked to continue is refused with a :class:`CheckpointError` naming the differences.
+A checkpoint is read back only by the same package version (``asperity_sim.__version__``,
+exactly: a patch release may change a result in its last bit, and a resumed run promises the
+bits of an uninterrupted run of one version) and the same format (:data:`FORMAT`, raised by a
+release that changes the layout); either refusal is a :class:`CheckpointError` naming both
+versions.  A checkpoint of another parameter set, path, law, ... than the run it is asked to
+continue is refused with a :class:`CheckpointError` naming the differences.
 
 Untrusted input (issue 24).  A checkpoint file is treated as hostile: a CRC-32 only detects
 accidents, and a forged file with valid checksums is easy to make.  :func:`load` reads the zip
@@ -202,13 +205,16 @@ def load(path, version: str) -> tuple[dict, Arrays]:
     if not isinstance(meta, dict):
         raise CheckpointError(f"checkpoint {name!r} has a damaged 'meta' record (a JSON {type(meta).__name__}, "
                               "expected an object)")
+    written = meta.get("version")
     if meta.get("format") != FORMAT:
-        raise CheckpointError(f"checkpoint {name!r} has format {meta.get('format')!r}; this asperity_sim "
-                              f"reads format {FORMAT} only")
-    if meta.get("version") != version:
-        raise CheckpointError(f"checkpoint {name!r} was written by asperity_sim {meta.get('version')!r}; "
-                              f"this is {version!r} and continues only its own checkpoints (a bit-identical "
-                              "continuation needs the same code)")
+        raise CheckpointError(f"checkpoint {name!r} has format {meta.get('format')!r} and was written by "
+                              f"asperity_sim {written!r}; this is asperity_sim {version!r}, which reads format "
+                              f"{FORMAT} only (finish the run with {written!r}, or start it again)")
+    if written != version:
+        raise CheckpointError(f"checkpoint {name!r} was written by asperity_sim {written!r}; this is {version!r} "
+                              "and continues only its own checkpoints, also across a patch release (a bit-identical "
+                              f"continuation needs the same code: finish the run with {written!r}, or start it "
+                              "again)")
     check_config(meta.get("config"), name)
     return meta, arrays
 

@@ -27,6 +27,9 @@ scene's own ``[output] file`` stays inside the scene's folder (see
 saves the whole state of the run (:mod:`asperity_sim.checkpoint`) every ``--checkpoint-every``
 converged increments (default: at stage ends); ``--resume`` continues a killed run from such a
 file to the same bits, with the scene (its run must match the checkpoint's) or alone.
+
+Progress: a tqdm bar on stderr when stderr is a terminal (:mod:`asperity_sim.progress`);
+nothing when it is piped or redirected, or with ``--quiet``.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
+from .progress import CountProgress, RunProgress, is_terminal
 
 PROG = "asperity-sim"
 EXIT_INPUT, EXIT_USAGE, EXIT_FAILED, EXIT_INTERRUPTED = 1, 2, 3, 130
@@ -112,8 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Parameters, law, sample size, steps and convergence of a run (or sweep) file.")
     i.add_argument("file", type=Path, metavar="OUT.nc")
 
-    sub.add_parser("presets", parents=[common], help="list the parameter sets that ship (Table 1), with units",
-                   description="The parameter sets that ship (the paper's Table 1), with units.")
+    pr = sub.add_parser("presets", parents=[common], help="list the parameter sets that ship (Table 1), with units",
+                        description="The parameter sets that ship (the paper's Table 1): every parameter and "
+                                    "derived quantity with its unit.")
+    pr.add_argument("names", nargs="*", metavar="PRESET", help="only these presets (R1, S1, R2, S2; default: all)")
 
     s = sub.add_parser("sweep", parents=[common], help="run a grid of parameters and replicas (on Dask)",
                        description="Run the grid and replicas of SWEEP.toml and write one netCDF file.")
@@ -125,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
     s.add_argument("--workers", type=_positive_int, default=2, help="workers of the local Dask cluster (default 2)")
     s.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
-    s.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--overwrite", action="store_true", help="replace an existing sweep file")
 
     f = sub.add_parser("fit", parents=[common], help="fit a scene to measured topographies (SurfaceTopography)",
@@ -190,7 +197,7 @@ def _add_joint_commands(sub, common):
         where.add_argument("--local-cluster", action="store_true",
                            help="run on a local Dask cluster (default: serial or cluster, whichever is estimated faster)")
         q.add_argument("--workers", type=_positive_int, default=2, help="workers of a local Dask cluster (default 2)")
-        q.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+        q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
 def main(argv=None) -> int:
@@ -339,7 +346,7 @@ def cmd_run(args) -> int:
             read_config(ck, __version__)  # a damaged or foreign checkpoint is refused before the progress bar
             ds = resume_run(ck, output=out, checkpoint_every=args.checkpoint_every or "saved")
         else:
-            bar = None if args.quiet or not sys.stderr.isatty() else ProgressBar(label, sys.stderr)
+            bar = None if args.quiet or not is_terminal() else RunProgress(label)
             kw = dict(output=out, progress=bar)
             if ck is not None:
                 kw.update(checkpoint=ck, checkpoint_every=args.checkpoint_every)
@@ -392,33 +399,6 @@ def _write_with_scene(ds, out, scene, scene_file, note=""):
                            f"{PROG} run {scene_file} (n = {scene.n}, seed = {scene.seed}) -> {out}"
                            + (f": {note}" if note else "")).strip()
     write_netcdf(ds, out)
-
-
-class ProgressBar:
-    """A one-line progress bar for :func:`asperity_sim.simulate`'s ``progress`` callback."""
-
-    def __init__(self, path, stream, width=28):
-        self.increments = [s.increments for s in path.stages]
-        self.total = sum(self.increments)
-        self.stream, self.width = stream, width
-        self.t0 = time.perf_counter()
-
-    def __call__(self, stage, n_stages, fraction, step, iterations):
-        self.stream.write("\r" + progress_line(self.increments, stage, n_stages, fraction, step, iterations,
-                                               time.perf_counter() - self.t0, self.width))
-        self.stream.flush()
-
-    def close(self):
-        self.stream.write("\n")
-        self.stream.flush()
-
-
-def progress_line(increments, stage, n_stages, fraction, step, iterations, elapsed, width=28) -> str:
-    """``stage 2/3 [#####.....]  47%  step 73/120  Newton  3  12.1 s``: overall fraction weighted by increments."""
-    done = (sum(increments[: stage - 1]) + fraction * increments[stage - 1]) / sum(increments)
-    filled = int(round(done * width))
-    return (f"stage {stage}/{n_stages} [{'#' * filled}{'.' * (width - filled)}] {100 * done:3.0f}%  "
-            f"step {step}/{sum(increments)}  Newton {iterations:2d}  {elapsed:6.1f} s")
 
 
 # -- plot ----------------------------------------------------------------------
@@ -584,25 +564,46 @@ def _sweep_info(ds):
 
 # -- presets -----------------------------------------------------------------------
 
-def presets_text() -> str:
-    """The Table 1 parameter sets, one row per parameter, with SI units."""
-    from .params import InterfaceParams
-    from .presets import TABLE1
+def presets_text(names=None) -> str:
+    """The Table 1 parameter sets: every parameter and derived quantity with its unit.
 
-    names = list(TABLE1)
+    One block per preset, one line per quantity: ``beta = 3.52e-06 m  (3.52 um)``; a
+    dimensionless one is marked ``[-]``.  Units and long names come from the definitions in
+    :class:`asperity_sim.params.InterfaceParams` (field metadata and derived properties).
+    """
+    from .params import InterfaceParams
+    from .presets import TABLE1, TITLES
+    from .scene import format_quantity
+
     units, longs = InterfaceParams.units(), InterfaceParams.long_names()
-    head = f"{'parameter':10s} {'unit':5s} " + " ".join(f"{n:>11s}" for n in names) + "  meaning"
-    lines = ["Parameter sets (the paper's Table 1, SI units; e = 1, b = c = d = 0 per SPEC §1).",
-             "Use in a scene file: [parameters] preset = \"R1\", plus overrides such as R_m = \"50 um\".", "",
-             head, "-" * len(head)]
-    for field, unit in units.items():
-        vals = " ".join(f"{getattr(TABLE1[n], field):11.4g}" for n in names)
-        lines.append(f"{field:10s} {unit:5s} {vals}  {longs[field]}")
+    rows = [(name, units[name], longs[name]) for name in units]
+    derived = [(name, unit, long) for name, (unit, long) in InterfaceParams.derived_units().items()]
+
+    def line(params, name, unit, long):
+        v = getattr(params, name)
+        si = f"{v:.6g} {'[-]' if unit == '1' else unit}"
+        readable = format_quantity(v, unit) if unit in ("m", "Pa", "m-2") and v != 0.0 else ""
+        readable = f"({readable})" if readable and readable != si else ""
+        return f"  {name:8s} = {si:16s} {readable:16s} {long}"
+
+    lines = ["Parameter sets that ship (the paper's Table 1), in SI units; [-] is dimensionless.",
+             "Use in a scene file: [parameters] preset = \"R1\", plus overrides such as R_m = \"50 um\"."]
+    for preset in names or TABLE1:
+        params = TABLE1[preset]
+        lines += ["", f"{preset}: {TITLES.get(preset, '')}"]
+        lines += [line(params, *row) for row in rows]
+        lines.append("  derived:")
+        lines += [line(params, *row) for row in derived]
     return "\n".join(lines)
 
 
 def cmd_presets(args) -> int:
-    print(presets_text())
+    from .presets import TABLE1
+
+    for name in args.names:
+        if name not in TABLE1:
+            raise ValueError(f"preset {name!r} is not known (valid: {', '.join(TABLE1)})")
+    print(presets_text(args.names))
     return 0
 
 
@@ -622,20 +623,14 @@ def cmd_sweep(args) -> int:
     if scheduler not in (None, "serial") and not dask_available():
         raise ValueError(f"--scheduler {scheduler} needs dask.distributed, which is not installed "
                          "(pip install 'asperity-sim[distributed]')")
-    tty = sys.stderr.isatty() and not args.quiet
     t0 = time.perf_counter()
-
-    def progress(done, total):
-        if tty:
-            sys.stderr.write(f"\rsweep: {done}/{total} runs done  {time.perf_counter() - t0:6.1f} s")
-            sys.stderr.flush()
 
     def note(message):
         print(f"{PROG}: note: {message}", file=sys.stderr)
 
-    ds = run_sweep(sweep, scheduler=scheduler, workers=args.workers, progress=progress, note=note)
-    if tty:
-        sys.stderr.write("\n")
+    with CountProgress("sweep") as progress:
+        ds = run_sweep(sweep, scheduler=scheduler, workers=args.workers,
+                       progress=None if args.quiet or not is_terminal() else progress, note=note)
     write_netcdf(ds, out)
     complete = int(np.sum(ds["status"].values == "complete"))
     print(f"wrote {out}: {ds.attrs['runs']} runs ({complete} complete), dims "
@@ -717,20 +712,13 @@ def _joint_run(args, kind, run):
 
     out = _check_output(args.output or Path(f"{args.scene.stem}_{kind}.nc"), inputs=(args.scene,))
     scheduler = "serial" if args.serial else "local" if args.local_cluster else args.scheduler
-    tty = sys.stderr.isatty() and not args.quiet
     t0 = time.perf_counter()
-
-    def progress(done, total):
-        if tty:
-            sys.stderr.write(f"\r{kind}: {done}/{total} runs done  {time.perf_counter() - t0:6.1f} s")
-            sys.stderr.flush()
 
     def note(message):
         print(f"{PROG}: note: {message}", file=sys.stderr)
 
-    ds = run(scheduler, progress, note)
-    if tty:
-        sys.stderr.write("\n")
+    with CountProgress(kind) as progress:
+        ds = run(scheduler, None if args.quiet or not is_terminal() else progress, note)
     files = write_products(ds, out)
     complete = int(np.sum(ds["status"].values == "complete"))
     print(f"wrote {files['netcdf']}, {files['csv']}, {files['figure']}: {ds.attrs['runs']} runs ({complete} complete) "

@@ -12,11 +12,28 @@ import math
 import numbers
 from dataclasses import dataclass, field
 
-__all__ = ["InterfaceParams", "check_real"]
+__all__ = ["InterfaceParams", "check_real", "derived"]
 
 
 def _f(units: str, long_name: str, **kw):
     return field(metadata={"units": units, "long_name": long_name}, **kw)
+
+
+class derived(property):
+    """A derived quantity of the parameters: a read-only property carrying its unit and long name.
+
+    The derived counterpart of a field's metadata, so the unit of ``E_star`` is written once,
+    where ``E_star`` is defined; :meth:`InterfaceParams.derived_units` collects them.
+    """
+
+    def __init__(self, fget, units: str = "1", long_name: str = ""):
+        super().__init__(fget, doc=fget.__doc__)
+        self.units, self.long_name = units, long_name
+
+    @staticmethod
+    def of(units: str, long_name: str):
+        """Decorator: ``@derived.of("Pa", "contact modulus")`` over the getter."""
+        return lambda fget: derived(fget, units, long_name)
 
 
 def check_real(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False, allow_inf=False):
@@ -113,17 +130,17 @@ class InterfaceParams:
             )
 
     # -- derived quantities (SPEC §3, §5) ----------------------------------
-    @property
+    @derived.of("1", "curvature factor e/(1+e)^2")
     def k_e(self) -> float:
         """Curvature factor e/(1+e)² of Eq. (9)."""
         return self.e / (1.0 + self.e) ** 2
 
-    @property
+    @derived.of("Pa", "contact modulus G/(1-nu)")
     def E_star(self) -> float:
         """Contact modulus G/(1-nu) [Pa], SPEC §5."""
         return self.G / (1.0 - self.nu)
 
-    @property
+    @derived.of("1", "lambda = (2-nu)/(2(1-nu)): full slip at delta_s = lambda mu delta_n")
     def lam(self) -> float:
         """lambda = (2-nu)/(2(1-nu)) of Eq. (17)."""
         return (2.0 - self.nu) / (2.0 * (1.0 - self.nu))
@@ -154,3 +171,8 @@ class InterfaceParams:
     @staticmethod
     def long_names() -> dict[str, str]:
         return {f.name: f.metadata["long_name"] for f in dataclasses.fields(InterfaceParams)}
+
+    @staticmethod
+    def derived_units() -> dict[str, tuple[str, str]]:
+        """Derived scalar quantities: name -> (unit, long name), from their definitions."""
+        return {name: (q.units, q.long_name) for name, q in vars(InterfaceParams).items() if isinstance(q, derived)}

@@ -5,7 +5,7 @@ e is not given in the paper; SPEC §1 fixes e = 1 and b = c = d = 0.
 
 from .params import InterfaceParams
 
-__all__ = ["R1", "S1", "R2", "S2", "TABLE1"]
+__all__ = ["R1", "S1", "R2", "S2", "TABLE1", "TITLES"]
 
 R1 = InterfaceParams(N=200e6, R_m=50e-6, R_sigma=15e-6, mu=1.0, G=80e9, nu=0.3,
                      r_o=0.0, alpha=6.14, beta=3.52e-6)
@@ -24,3 +24,7 @@ S2 = InterfaceParams(N=0.2034e6, R_m=8.18e-3, R_sigma=0.20e-3, mu=1.0, G=31.8e9,
 """Smooth marble interface (Table 1, S2)."""
 
 TABLE1 = {"R1": R1, "S1": S1, "R2": R2, "S2": S2}
+
+TITLES = {"R1": "rough interface", "S1": "smooth interface", "R2": "rough marble interface",
+          "S2": "smooth marble interface"}
+"""What each preset describes (the paper's Table 1)."""

@@ -34,13 +34,16 @@ allowed.  The layout (``scenarios/*.toml`` are complete examples)::
     Delta_3 = "0 um"
     # adaptive = false, max_fraction = 0.1   (optional, see asperity_sim.paths.Stage)
 
-A plain TOML number is taken in SI units (m, Pa, 1/m²).
+A plain TOML number is taken in SI units (m, Pa, 1/m²).  Strings with units are read by
+:mod:`pint` (:func:`parse_quantity`): any unit of the right dimension works (``"0.5 mm"``,
+``"1 psi"``), and exponents may be written ``mm-2``, ``mm2``, ``mm^2``, ``mm²`` or ``mm**2``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
 import numbers
 import re
@@ -56,8 +59,8 @@ except ModuleNotFoundError:  # Python 3.10
 from . import paths, presets
 from .params import InterfaceParams
 
-__all__ = ["Scene", "SceneError", "load_scene", "scene_from_dict", "parse_quantity", "UNITS",
-           "format_quantity", "check_keys", "read_toml"]
+__all__ = ["Scene", "SceneError", "load_scene", "scene_from_dict", "parse_quantity", "unit_registry",
+           "format_quantity", "check_keys", "check_int", "read_toml"]
 
 
 class SceneError(ValueError):
@@ -66,36 +69,62 @@ class SceneError(ValueError):
 
 # -- units ------------------------------------------------------------------
 
-_LENGTH = {"m": Decimal(1), "cm": Decimal("1e-2"), "mm": Decimal("1e-3"), "um": Decimal("1e-6"),
-           "µm": Decimal("1e-6"), "μm": Decimal("1e-6"), "nm": Decimal("1e-9")}
+@functools.lru_cache(maxsize=None)
+def unit_registry():
+    """The package's :class:`pint.UnitRegistry`, created on first use (pint costs ~0.5 s to import and set up).
+
+    Its numbers are :class:`decimal.Decimal`, so a conversion is exact in decimal arithmetic and
+    rounded once to a float: ``"15 um"`` is the float ``15e-6`` (not ``15 * 1e-6``).
+    """
+    import pint
+
+    return pint.UnitRegistry(non_int_type=Decimal)
 
 
-def _areal_units():
-    out = {}
-    for name, f in _LENGTH.items():
-        for spelling in (f"1/{name}2", f"1/{name}^2", f"1/{name}²", f"/{name}2", f"/{name}^2", f"/{name}²",
-                         f"{name}-2", f"{name}^-2"):
-            out[spelling] = 1 / f**2
-    return out
-
-
-UNITS = {
-    "m": _LENGTH,
-    "Pa": {"Pa": Decimal(1), "kPa": Decimal("1e3"), "MPa": Decimal("1e6"), "GPa": Decimal("1e9")},
-    "m-2": _areal_units(),
+_KINDS = {  # SI unit (UDUNITS spelling) -> (what it is, pint spelling, examples of accepted units, example)
+    "m": ("a length", "m", "nm, um (µm), mm, cm, m", "um"),
+    "Pa": ("a stress", "Pa", "Pa, kPa, MPa, GPa", "MPa"),
+    "m-2": ("an areal density", "m**-2", "1/mm2, 1/um2, mm-2, 1/mm^2", "1/mm2"),
+    "1": ("a dimensionless number", "dimensionless", "a plain number or %", ""),
+    "rad": ("an angle", "radian", "deg, rad", "deg"),
 }
-"""SI unit -> {accepted spelling: exact decimal factor to SI}.  Dimensionless quantities ("1") take plain numbers."""
-
-_KIND = {"m": "length", "Pa": "stress", "m-2": "areal density", "1": "dimensionless"}
-_SHOWN = {"m": "nm, um (µm), mm, cm, m", "Pa": "Pa, kPa, MPa, GPa", "m-2": "1/m2, 1/mm2, 1/um2 (or m-2, mm-2, ...)"}
+"""The quantities of scene files, by SI unit.  pint reads any unit of the right dimension."""
+_ANGLE_UNITS = ("radian", "degree", "arcminute", "arcsecond", "turn", "gradian")
 _QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+_SUPERSCRIPTS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
+
+
+def _pint_units(text: str) -> str:
+    """A unit written as in the scene files (UDUNITS ``m-2``, ``mm2``, ``/mm2``, ``mm^2``, ``mm²``) in pint's syntax."""
+    text = text.strip()
+    if text.startswith("/"):
+        text = "1" + text
+    text = re.sub(r"([⁻]?[⁰¹²³⁴⁵⁶⁷⁸⁹]+)", lambda m: "**" + m.group(1).translate(_SUPERSCRIPTS), text)
+    text = text.replace("^", "**")
+    # an exponent written straight after a unit name: m-2, mm2 (pint would read "m-2" as m minus 2)
+    return re.sub(r"(?<=[^\W\d])([+-]?\d+)", r"**\1", text)
+
+
+def _dimension_name(dimensionality) -> str:
+    """``a length``, ``a stress``, ... for a pint dimensionality (its own text for others)."""
+    ureg = unit_registry()
+    for si, (kind, spelling, *_) in _KINDS.items():
+        if si != "rad" and ureg.parse_units(spelling).dimensionality == dimensionality:
+            return kind
+    return f"a quantity of dimension {dimensionality}"
 
 
 def parse_quantity(value, si_unit: str, name: str = "value") -> float:
-    """A TOML value as a float in SI.
+    """A TOML value as a float in SI, read with :mod:`pint`.
 
-    ``value`` is a plain number (already SI) or a string ``"<number> <unit>"`` with a unit
-    of the dimension of ``si_unit`` ("m", "Pa", "m-2"); ``si_unit = "1"`` takes plain numbers only.
+    value : a plain number (already in SI) or a string ``"<number> <unit>"`` (``"50 um"``,
+        ``"500 MPa"``, ``"200 /mm2"``, ``"30 deg"``); any unit pint knows of the right dimension
+    si_unit : ``"m"``, ``"Pa"``, ``"m-2"``, ``"1"`` (dimensionless: a plain number, or a string
+        such as ``"0.6"`` or ``"60 %"``) or ``"rad"`` (a string needs its unit)
+    name : the key, as it starts the error message
+
+    Raises :class:`SceneError` naming the key, the value and the expected dimension, e.g.
+    ``sigma_n = '3 m': expected a stress (Pa), got a length``.
     """
     if isinstance(value, bool):
         raise SceneError(f"{name} = {value!r} is not a number")
@@ -106,31 +135,30 @@ def parse_quantity(value, si_unit: str, name: str = "value") -> float:
         return v
     if not isinstance(value, str):
         raise SceneError(f"{name} = {value!r} is not a number or a quantity string such as \"50 um\"")
-    if si_unit == "1":
-        key = name.rsplit(" ", 1)[-1]
-        raise SceneError(f"{name} = {value!r}: {key} is dimensionless, write a plain number (e.g. {key} = 0.5)")
-    units = UNITS[si_unit]
+    kind, spelling, shown, example = _KINDS[si_unit]
+    expected = f"expected {kind} ({si_unit})"
     m = _QUANTITY.match(value)
     if not m:
-        raise SceneError(f"{name} = {value!r} is not a quantity (write \"<number> <unit>\", "
-                         f"{_KIND[si_unit]} units: {_SHOWN[si_unit]})")
+        raise SceneError(f"{name} = {value!r} is not a quantity (write \"<number> <unit>\"; {expected}: {shown})")
     number, unit = m.groups()
-    if not unit:
-        raise SceneError(f"{name} = {value!r} has no unit (write e.g. \"{number} {next(iter(_example(si_unit)))}\", "
-                         f"or a plain number in {si_unit})")
-    if unit not in units:
-        other = [_KIND[u] for u, table in UNITS.items() if unit in table]
-        what = f"{unit!r} is a{'n' if other and other[0][0] in 'aeiou' else ''} {other[0]} unit" if other \
-            else f"unknown unit {unit!r}"
-        raise SceneError(f"{name} = {value!r}: {what}; a {_KIND[si_unit]} is needed (valid: {_SHOWN[si_unit]})")
-    v = float(Decimal(number) * units[unit])  # exact decimal product: "15 um" is the float 15e-6
+    if not unit and si_unit != "1":
+        raise SceneError(f"{name} = {value!r} has no unit (write e.g. \"{number} {example}\", "
+                         f"or a plain number in {si_unit}); {expected}")
+    ureg = unit_registry()
+    try:
+        units = ureg.parse_units(_pint_units(unit)) if unit else ureg.dimensionless
+    except Exception as err:  # noqa: BLE001 - pint's UndefinedUnitError and its syntax errors
+        names = getattr(err, "unit_names", None) or (unit,)
+        names = (names,) if isinstance(names, str) else tuple(names)
+        raise SceneError(f"{name} = {value!r}: unknown unit {names[0]!r}; {expected} such as {shown}") from None
+    target = ureg.parse_units(spelling)
+    if units.dimensionality != target.dimensionality or (si_unit == "rad" and str(units) not in _ANGLE_UNITS):
+        raise SceneError(f"{name} = {value!r}: {expected}, got {_dimension_name(units.dimensionality)} "
+                         f"({unit}); valid: {shown}")
+    v = float(ureg.Quantity(Decimal(number), units).to(target).magnitude)
     if not math.isfinite(v):
         raise SceneError(f"{name} = {value!r} is not finite")
     return v
-
-
-def _example(si_unit):
-    return {"m": ("um",), "Pa": ("MPa",), "m-2": ("1/mm2",)}[si_unit]
 
 
 def format_quantity(value: float, si_unit: str) -> str:
@@ -169,9 +197,14 @@ def _table(data: dict, key: str, where: str, required=False) -> dict:
     return value
 
 
-def _int(value, name, lo, hi=None):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo or (hi is not None and value > hi):
-        rng = f"integer >= {lo}" if hi is None else f"integer in [{lo}, {hi}]"
+def check_int(value, name, lo, hi=None):
+    """An integer setting in [lo, hi]: "not an integer" for a string, float or bool, else "out of range"."""
+    rng = f"integer >= {lo}" if hi is None else f"integer in [{lo}, {hi}]"
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        hint = f": write {value.strip()} without quotes" if isinstance(value, str) \
+            and re.fullmatch(r"\s*[+-]?\d+\s*", value) else ""
+        raise SceneError(f"{name} = {value!r} is not an integer{hint} (valid range: {rng})")
+    if value < lo or (hi is not None and value > hi):
         raise SceneError(f"{name} = {value!r} is out of range (valid range: {rng})")
     return int(value)
 
@@ -322,9 +355,9 @@ def _run_settings(table: dict, where: str) -> dict:
 
     check_keys(table, tuple(_RUN), where)
     out = {**_RUN, **table}
-    out["n"] = _int(out["n"], f"{where}n", 1, N_MAX)
-    out["seed"] = _int(out["seed"], f"{where}seed", 0)
-    out["k"] = _int(out["k"], f"{where}k", 1, 4096)
+    out["n"] = check_int(out["n"], f"{where}n", 1, N_MAX)
+    out["seed"] = check_int(out["seed"], f"{where}seed", 0)
+    out["k"] = check_int(out["k"], f"{where}k", 1, 4096)
     out["sampler"] = _choice(out["sampler"], f"{where}sampler", SAMPLERS)
     out["law"] = _choice(out["law"], f"{where}law", tuple(LAWS))
     out["policy"] = _choice(out["policy"], f"{where}policy", POLICIES)
@@ -343,7 +376,7 @@ def _output(table: dict, where: str, folder: Path = Path(".")):
     if snapshots is not None and snapshots != "stage_ends":
         if not isinstance(snapshots, list):
             raise SceneError(f"{where}snapshots = {snapshots!r} must be \"stage_ends\" or a list of step numbers")
-        snapshots = tuple(_int(s, f"{where}snapshots step", 0) for s in snapshots)
+        snapshots = tuple(check_int(s, f"{where}snapshots step", 0) for s in snapshots)
     return output, snapshots
 
 
@@ -400,7 +433,7 @@ def _stage(table: dict, where: str) -> paths.Stage:
                              f"or {s} = \"<stress>\" (stress control)")
     if "increments" not in table:
         raise SceneError(f"{where}missing increments (integer >= 1)")
-    increments = _int(table["increments"], f"{where}increments", 1, 10**7)
+    increments = check_int(table["increments"], f"{where}increments", 1, 10**7)
     try:
         return paths.Stage(tuple(control), tuple(target), increments,
                            adaptive=table.get("adaptive", False), max_fraction=table.get("max_fraction", 0.1),

@@ -55,7 +55,7 @@ from scipy import special, stats
 
 from .params import InterfaceParams, check_real
 
-__all__ = ["SurfaceError", "Summits", "FitResult", "read", "composite", "synthetic", "find_summits", "fit",
+__all__ = ["SurfaceError", "bem_contact", "Summits", "FitResult", "read", "composite", "synthetic", "find_summits", "fit",
            "empirical_population", "spectral_moments", "nayak", "IDENTIFIED", "NOT_IDENTIFIED", "INSTALL_HINT"]
 
 INSTALL_HINT = 'pip install "asperity-sim[surfaces]" (or pip install SurfaceTopography)'
@@ -595,6 +595,41 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
               f"Delta_1 = {_toml_string(format_quantity(closure, 'm'))}  # depth reached by 10 % of the summits",
               'Delta_2 = "0 um"', 'Delta_3 = "0 um"', ""]
     return "\n".join(lines)
+
+
+def bem_contact(h, size, E_star, pressures, tolerance=1e-10):
+    """Exact (boundary-element) frictionless contact of a rigid surface h on an elastic half-space.
+
+    The reference the asperity model is compared with (``scenarios/bem_closure.py``); needs
+    tamaas (``pip install "asperity-sim[bem]"``).  tamaas' Polonsky-Keer solver on a periodic
+    grid, with E = E_star and nu = 0, so its contact modulus E/(1 - nu²) is E_star.
+
+    h : ndarray (nx, ny) [m]      composite surface heights
+    size : (Lx, Ly) [m]           physical size of the periodic cell
+    E_star : float [Pa]           contact modulus
+    pressures : sequence [Pa]     mean pressures to solve at
+    tolerance : float [1]         tamaas solver tolerance
+
+    Returns an array (4, len(pressures)): closure max(h) - mean(u) [m], mean separation
+    mean(u - h) [m], area fraction [1] (traction > 0) and wall time [s] of each solve.
+    """
+    import time
+
+    import tamaas as tm
+
+    tm.initialize(1)
+    tm.set_log_level(tm.LogLevel.error)
+    model = tm.ModelFactory.createModel(tm.model_type.basic_2d, list(size), list(h.shape))
+    model.E, model.nu = E_star, 0.0  # tamaas' contact modulus E/(1 - nu²) = E*
+    solver = tm.PolonskyKeerRey(model, np.ascontiguousarray(h), tolerance)
+    out = np.empty((4, len(pressures)))
+    for k, p in enumerate(pressures):
+        t0 = time.perf_counter()
+        solver.solve(float(p))
+        seconds = time.perf_counter() - t0
+        t, u = np.array(model.traction), np.array(model.displacement)
+        out[:, k] = h.max() - u.mean(), (u - h).mean(), (t > 0).mean(), seconds
+    return out
 
 
 def plot_fit(result: FitResult):

@@ -66,7 +66,8 @@ import xarray as xr
 
 from . import __version__, paths
 from .params import InterfaceParams
-from .scene import Scene, SceneError, check_keys, format_quantity, parse_quantity, read_toml, scene_from_dict
+from .scene import (Scene, SceneError, check_int, check_keys, format_quantity, parse_quantity, read_toml,
+                    scene_from_dict)
 
 __all__ = ["Sweep", "load_sweep", "run_sweep", "run_one", "align_run", "ensemble_statistics", "dask_available",
            "apply_path", "choose_engine", "estimate_run_seconds", "ALIGNED", "STATISTICS", "PATH_QUANTITIES",
@@ -96,23 +97,9 @@ RUN_QUANTITIES = {
 }
 """Run settings a sweep grid can vary: name -> (unit, long name)."""
 
-_ANGLE = {"rad": 1.0, "deg": math.pi / 180.0, "°": math.pi / 180.0}
-
-
 def parse_angle(value, name="direction") -> float:
-    """An angle [rad] from a plain number (radians) or ``"<number> deg"`` / ``"<number> rad"``."""
-    if isinstance(value, str):
-        parts = value.split()
-        if len(parts) == 2 and parts[1] in _ANGLE:
-            try:
-                v = float(parts[0]) * _ANGLE[parts[1]]
-            except ValueError:
-                v = math.nan
-            if math.isfinite(v):
-                return v
-        raise SceneError(f"{name} = {value!r} is not an angle (write \"30 deg\", \"0.5 rad\" or a plain number "
-                         "in radians)")
-    return parse_quantity(value, "1", name)
+    """An angle [rad] from a plain number (radians) or a string with its unit (``"30 deg"``, ``"0.5 rad"``, pint)."""
+    return parse_quantity(value, "rad", name)
 
 
 def _check_value(name, value):
@@ -140,9 +127,7 @@ def _check_value(name, value):
             raise SceneError(f"{where} = {value!r} is not known (valid: {', '.join(LAWS)})")
         return value
     lo, hi = {"cycles": (1, 1000), "n": (1, N_MAX), "k": (1, 4096)}[name]
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise SceneError(f"{where} = {value!r} is out of range (valid range: integer in [{lo}, {hi}])")
-    return int(value)
+    return check_int(value, where, lo, hi)
 
 
 def apply_path(path: paths.LoadPath, sigma_n=None, amplitude=None, direction=None, cycles=None) -> paths.LoadPath:
@@ -344,8 +329,7 @@ def _seeds(table, base_seed, where):
             raise SceneError(f"{where}seeds = {seeds!r} must be a non-empty list of integers >= 0")
         return tuple(seeds)
     replicas = table.get("replicas", 1)
-    if isinstance(replicas, bool) or not isinstance(replicas, int) or not 1 <= replicas <= 100_000:
-        raise SceneError(f"{where}replicas = {replicas!r} is out of range (valid range: integer in [1, 100000])")
+    replicas = check_int(replicas, f"{where}replicas", 1, 100_000)
     return tuple(base_seed + i for i in range(replicas))
 
 

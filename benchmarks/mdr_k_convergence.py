@@ -7,7 +7,8 @@ Errors, relative to mu f_n (forces) or to the closed-form loop energy:
 - shear turning by 90° and 120° after 0.6 delta_slip: max force difference to k = 256.
 
 Run:   python benchmarks/mdr_k_convergence.py
-Writes outputs/mdr_k_convergence.json and outputs/mdr_k_convergence.md.
+Writes outputs/mdr_k_convergence.json and outputs/mdr_k_convergence.md.  About 3 seconds
+(2.6 s measured on this 2-core machine, one numba thread, warm cache).
 """
 
 from __future__ import annotations

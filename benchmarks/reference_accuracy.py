@@ -7,7 +7,9 @@ the default level with a refined one (``--ref-level``, default "ultra").  The er
 the one of the module docstring: max_i |sigma_i - sigma_i^ref| / max_i |sigma_i^ref|.
 
 Run:   python benchmarks/reference_accuracy.py [--seed 4] [--n 30] [--mu 0.3] [--level default]
-Prints one line per point and a summary (worst, 90 % quantile, median error; time per call).
+Prints one line per point and a summary (worst, 90 % quantile, median error; time per call);
+writes no file.  About 2 minutes with the defaults (113 s measured on one numba thread of this
+2-core machine, most of it the refined "ultra" level).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@
 2. First run against warm numba cache: a fresh process (import + sample + the Fig. 13 run
    of R1 with 2^14 Sobol points) with an empty cache directory, then again with it filled.
 3. The Fig. 13 target: both curves (R1 and S1, shear_path(500e6, 50e-6, 20), as in
-   scenarios/convergence.py) by randomised QMC (Sobol', n = 2^16 for R1, 2^14 for S1), in a
+   studies/convergence.py) by randomised QMC (Sobol', n = 2^16 for R1, 2^14 for S1), in a
    fresh process with a warm cache; wall time of the runs alone and of the whole process
    (imports included); the error of each curve (max relative error of sigma_2/sigma_1 over
    the shear stages) against the quadrature, for 3 seeds.  The side-by-side ratio against

@@ -43,6 +43,7 @@ from asperity_sim.geometry import theta_m_array
 from asperity_sim.io import read_netcdf, write_netcdf
 from asperity_sim.params import check_real
 from asperity_sim.population import Population
+from asperity_sim.surfaces import bem_contact
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 MODELS = ("parametric", "empirical", "independent")
@@ -74,26 +75,6 @@ def parse(argv=None):
         p.error(f"--pixels = {args.pixels} is out of range (valid range: a multiple of 16, >= 64)")
     check_real("--tolerance", args.tolerance, 0.0, 1e-4, lo_open=True)
     return args
-
-
-def bem(h, size, E_star, pressures, tolerance):
-    """Closure [m], mean separation [m], area fraction [1] and wall time [s] at each mean pressure [Pa]."""
-    import tamaas as tm
-
-    tm.initialize(1)
-    tm.set_log_level(tm.LogLevel.error)
-    n = h.shape
-    model = tm.ModelFactory.createModel(tm.model_type.basic_2d, list(size), list(n))
-    model.E, model.nu = E_star, 0.0  # tamaas' contact modulus E/(1 - nu²) = E*
-    solver = tm.PolonskyKeerRey(model, np.ascontiguousarray(h), tolerance)
-    out = np.empty((4, len(pressures)))
-    for k, p in enumerate(pressures):
-        t0 = time.perf_counter()
-        solver.solve(float(p))
-        seconds = time.perf_counter() - t0
-        t, u = np.array(model.traction), np.array(model.displacement)
-        out[:, k] = h.max() - u.mean(), (u - h).mean(), (t > 0).mean(), seconds
-    return out
 
 
 def area_fraction(pop: Population, d1: float) -> float:
@@ -144,7 +125,7 @@ def main(argv=None):
     # Persson: area fraction ~ 2 p / (E* rms slope); aim at 0.1 % .. 10 %
     rms_slope = math.sqrt(2.0 * m2)
     pressures = np.geomspace(1e-3, 1e-1, args.loads) * E_star * rms_slope / 2.0
-    bem_out = bem(h, res.surface.physical_sizes, E_star, pressures, args.tolerance)
+    bem_out = bem_contact(h, res.surface.physical_sizes, E_star, pressures, args.tolerance)
     pops = {"parametric": Population.sample(params, args.n, seed=args.seed),
             "empirical": surfaces.empirical_population(res, args.n, seed=args.seed),
             "independent": surfaces.empirical_population(res, args.n, seed=args.seed, joint=False)}

@@ -2,7 +2,7 @@
 
 Physical question: how many asperities n and how many springs per contact k does a given
 accuracy of a cyclic response of the history law cost, in wall time?  Unlike the ``paper``
-law (scenarios/convergence.py) there is no quadrature for a history law, so the reference
+law (studies/convergence.py) there is no quadrature for a history law, so the reference
 is a much larger run, and the error has two parts: the Monte Carlo (sampling) error, which
 falls with n, and the spring discretisation error of the MDR law, which falls with k.
 
@@ -35,7 +35,7 @@ of the RMS (chi-squared with r replicas), since an RMS from 8 replicas is itself
 Wall time: Population.sample + simulate, warm numba cache (every kernel is run once before
 timing), ONE numba thread (--threads, default 1; numba.set_num_threads), OMP_WAIT_POLICY=PASSIVE;
 a run shorter than 0.2 s is run three times and its median time kept (runs are
-deterministic), as in scenarios/convergence.py.  The reference runs are timed but are not
+deterministic), as in studies/convergence.py.  The reference runs are timed but are not
 part of the grid.
 
 Run:   python studies/mdr_convergence.py            (full study: 14.6 min on one core of this
@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import os
 
-# idle OpenMP threads sleep instead of spinning (see scenarios/convergence.py)
+# idle OpenMP threads sleep instead of spinning (see studies/convergence.py)
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import argparse
@@ -71,9 +71,9 @@ import numpy as np
 import xarray as xr
 
 from asperity_sim import Population, __version__, paths, presets, simulate
+from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
-REPEAT_BELOW, REPEATS = 0.2, 3  # a run shorter than REPEAT_BELOW [s] is timed REPEATS times (median)
 S, D = paths.STRESS, paths.DISPLACEMENT
 QUANTITIES = ("peak_resistance", "cycle_dissipation")
 LONG_NAMES = {"peak_resistance": "peak shear resistance max(sigma_2/sigma_1) over the first loading branch",
@@ -130,14 +130,6 @@ def run_once(scene, n, k, seed):
     ds = simulate(presets.R1, scene.path, population=pop, law="mdr", k=k)
     return ds, time.perf_counter() - t0
 
-
-def timed(run):
-    """(result, wall time [s]) of ``run() -> (result, seconds)``; the median of REPEATS timings when the
-    first is shorter than REPEAT_BELOW (the result is the first run's; runs are deterministic)."""
-    result, seconds = run()
-    if seconds < REPEAT_BELOW:
-        seconds = float(np.median([seconds] + [run()[1] for _ in range(REPEATS - 1)]))
-    return result, seconds
 
 
 def replicas_for(n, replicas):

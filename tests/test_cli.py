@@ -72,31 +72,106 @@ def test_run_default_output_is_scene_name_in_cwd(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "figs" / "small.pdf").stat().st_size > 0
 
 
-def test_presets_lists_table1_with_units(capsys):
+def test_presets_print_every_parameter_with_its_unit(capsys):
+    import dataclasses
+    import re
+
+    from asperity_sim.params import InterfaceParams
+
     assert cli.main(["presets"]) == 0
     out = capsys.readouterr().out
-    for name in ("R1", "S1", "R2", "S2"):
-        assert name in out
-    assert "R_m        m" in out and "G          Pa" in out and "N          m-2" in out
+    blocks = out.split("\n\n")[1:]
+    assert [b.splitlines()[0].split(":")[0] for b in blocks] == ["R1", "S1", "R2", "S2"]
+    fields = [f.name for f in dataclasses.fields(InterfaceParams)]
+    for block in blocks:
+        quantities = dict(re.findall(r"^  (\w+) += (\S+ \S+)", block, re.M))
+        assert list(quantities) == fields + ["k_e", "E_star", "lam"]
+        assert all(q.split()[1] in ("m", "Pa", "m-2", "[-]") for q in quantities.values()), quantities
+    r1 = blocks[0]
+    assert "  beta     = 3.52e-06 m       (3.52 um)" in r1 and "  alpha    = 6.14 [-]" in r1
+    assert "  N        = 2e+08 m-2" in r1 and "  G        = 8e+10 Pa         (80 GPa)" in r1
+    assert f"  E_star   = {80e9 / (1 - 0.3):.6g} Pa" in r1  # G/(1-nu) of R1
+    assert cli.main(["presets", "S2"]) == 0
+    only = capsys.readouterr().out
+    assert "S2: smooth marble interface" in only and "R1:" not in only and "  nu       = 0.152 [-]" in only
+    assert cli.main(["presets", "R7"]) == cli.EXIT_INPUT
+    assert "preset 'R7' is not known (valid: R1, S1, R2, S2)" in _one_error_line(capsys.readouterr().err, 1)
 
 
-def test_progress_line_and_bar():
-    line = cli.progress_line([10, 30], 2, 2, 0.5, 25, 3, 1.5, width=10)
-    assert line.startswith("stage 2/2 [######....]  62%") and "step 25" in line and "Newton  3" in line
-    buf = io.StringIO()
-    from asperity_sim.scene import load_scene
+class _Terminal(io.StringIO):
+    """A text stream that says it is a terminal, to see what the progress bar draws."""
 
-    bar = cli.ProgressBar(load_scene(SHIPPED[0]).path, buf)
-    bar(1, 3, 1.0, 40, 2)
-    bar.close()
-    assert buf.getvalue().startswith("\rstage 1/3") and buf.getvalue().endswith("\n")
+    def isatty(self):
+        return True
+
+
+def test_run_progress_draws_stage_names_and_increments_on_a_terminal_only():
+    from asperity_sim import simulate
+    from asperity_sim.progress import RunProgress
+    from asperity_sim.scene import scene_from_dict, tomllib
+
+    scene = scene_from_dict(tomllib.loads(SMALL))
+    term, pipe = _Terminal(), io.StringIO()
+    with RunProgress(scene.path, term) as bar, RunProgress(scene.path, pipe) as quiet:
+        def both(*args):  # simulate's progress(stage, n_stages, fraction, step, iterations), unchanged
+            bar(*args)
+            quiet(*args)
+        simulate(scene.params, scene.path, n=300, seed=1, progress=both)
+        assert bar.bar.n == bar.total == 6
+    text = term.getvalue()
+    assert "stage 1/2 closure" in text and "stage 2/2 shear" in text and "6/6" in text and "Newton" in text
+    assert pipe.getvalue() == ""
+
+
+def test_count_progress_counts_runs_on_a_terminal_only():
+    from asperity_sim.progress import CountProgress
+
+    term, pipe = _Terminal(), io.StringIO()
+    for stream in (term, pipe):
+        with CountProgress("sweep", stream) as bar:
+            for done in (1, 2, 4):
+                bar(done, 4)
+    assert "sweep" in term.getvalue() and "4/4" in term.getvalue() and pipe.getvalue() == ""
+
+
+@pytest.mark.slow
+def test_piped_run_has_no_progress_and_a_terminal_has_the_bar(tmp_path):
+    import pty
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    command = [sys.executable, "-m", "asperity_sim", "run", str(scene)]
+    piped = subprocess.run(command + ["-o", str(tmp_path / "piped.nc")], capture_output=True, text=True, env=env,
+                           timeout=300)
+    assert piped.returncode == 0, piped.stderr
+    assert "stage" not in piped.stderr and "\r" not in piped.stderr and "it/s" not in piped.stderr
+    master, slave = pty.openpty()
+    try:
+        tty = subprocess.run(command + ["-o", str(tmp_path / "tty.nc")], stdout=subprocess.PIPE, stderr=slave,
+                             env=env, timeout=300)
+    finally:
+        os.close(slave)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # EIO: the terminal's other end is closed and everything was read
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(master)
+    drawn = b"".join(chunks).decode("utf-8", "replace")
+    assert tty.returncode == 0
+    assert "stage 2/2 shear" in drawn and "6/6" in drawn
 
 
 BROKEN = {
-    "unknown unit": ('R_m = "50 uum"', "[parameters] R_m = '50 uum': unknown unit 'uum'; a length is needed"),
+    "unknown unit": ('R_m = "50 uum"', "[parameters] R_m = '50 uum': unknown unit 'uum'; expected a length (m)"),
     "negative value": ('R_sigma = "-1 um"', "[parameters] R_sigma = -1e-06 is out of range (valid range: >= 0)"),
     "unknown key": ("Rsigma = 1e-6", "[parameters] unknown key 'Rsigma'"),
-    "stress for a length": ('beta = "3 MPa"', "'MPa' is a stress unit; a length is needed"),
+    "stress for a length": ('beta = "3 MPa"', "[parameters] beta = '3 MPa': expected a length (m), got a stress (MPa)"),
 }
 
 
@@ -112,6 +187,15 @@ def test_broken_scene_one_line_exit_1_and_nothing_lost(case, tmp_path, capsys):
     assert message in err and str(scene) in err
     assert out.read_bytes() == b"previous results"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.toml", "result.nc"]
+
+
+def test_quoted_integer_is_not_an_integer(tmp_path, capsys):
+    scene = tmp_path / "quoted.toml"
+    scene.write_text(SMALL.replace("n = 400", 'n = "400"'))
+    assert cli.main(["run", str(scene)]) == cli.EXIT_INPUT
+    line = _one_error_line(capsys.readouterr().err, 1)
+    assert line.endswith(f"{scene}: [run] n = '400' is not an integer: write 400 without quotes "
+                         "(valid range: integer in [1, 2147483647])")
 
 
 def test_missing_fields(tmp_path, capsys):

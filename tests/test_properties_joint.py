@@ -247,11 +247,13 @@ def test_sweep_file_with_path_quantities_units_and_errors(tmp_path):
     assert sc.law == "mdr" and sc.n == 200 and sc.path.stages[-1].target[:2] == pytest.approx((10e6, 2e-6))
     for text, message in [
         ('sigma_n = ["-1 MPa"]', "sigma_n = -1000000.0 is out of range (valid range: > 0 Pa)"),
-        ('sigma_n = ["1 um"]', "'um' is a length unit; a stress is needed"),
-        ('direction = ["30 grad"]', "is not an angle"),
+        ('sigma_n = ["1 um"]', "sigma_n = '1 um': expected a stress (Pa), got a length (um)"),
+        ('direction = ["30 um"]', "direction = '30 um': expected an angle (rad), got a length (um)"),
+        ('direction = ["30"]', "direction = '30' has no unit"),
         ('cycles = [0]', "cycles = 0 is out of range (valid range: integer in [1, 1000])"),
         ('law = ["elastic"]', "law = 'elastic' is not known (valid: paper, mdr)"),
-        ('n = [1.5]', "n = 1.5 is out of range"),
+        ('n = [1.5]', "n = 1.5 is not an integer"),
+        ('n = ["100"]', "n = '100' is not an integer"),
         ('sigman = ["1 MPa"]', "unknown key 'sigman'"),
     ]:
         f.write_text(base + f"[sweep]\nreplicas = 1\n[sweep.grid]\n{text}\n")
@@ -352,7 +354,7 @@ def test_power_law_fit_recovers_A_and_B():
     ("1 MPa:1 GPa:x:log", "count = 'x' is out of range"),
     ("1 MPa:1 GPa:4:cubic", "spacing = 'cubic' is not known (valid: log, lin)"),
     ("1 GPa:1 MPa:4:log", "start and stop are out of range (valid range: 0 < start < stop)"),
-    ("1 um:1 GPa:4:log", "--sigma-n start = '1 um': 'um' is a length unit; a stress is needed"),
+    ("1 um:1 GPa:4:log", "--sigma-n start = '1 um': expected a stress (Pa), got a length (um)"),
     ("1 MPa:1 GPa", "is not a range"),
     ("-5 MPa", "is out of range (valid range: > 0)"),
 ])
@@ -436,7 +438,7 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
         (["envelope", "cns.toml", "--sigma-n", "1 MPa:1 GPa:0:log"], "--sigma-n count = '0' is out of range"),
         (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--shear-stages", "9"], "--shear-stages = '9' is out of range"),
         (["envelope", "cns.toml", "--sigma-n", "1 MPa", "--level", "1.5"], "--level = 1.5 is out of range"),
-        (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "'MPa' is a stress unit; a length is needed"),
+        (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "--amplitude = '1 MPa': expected a length (m), got a stress"),
         (["cyclic", "cns.toml", "--amplitude", "1 um", "--sigma-n", "-3 MPa"], "--sigma-n = '-3 MPa' is out of range"),
     ]:
         assert cli.main(argv) == cli.EXIT_INPUT
@@ -445,23 +447,20 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
-def test_joint_properties_scenario_quick(tmp_path, capsys):
-    import importlib
-    import sys
-
-    sys.path.insert(0, str(SCENARIOS))
-    module = importlib.import_module("joint_properties")
-    assert module.main(["--quick", "--n", "600", "--outdir", str(tmp_path)]) == 0
+def test_joint_properties_scenario_quick(tmp_path, run_script):
+    done = run_script("scenarios/joint_properties.py", "--quick", "--n", "600", "--outdir", tmp_path)
+    assert done.returncode == 0, done.stderr
     for name in ("R1", "S1"):
         for law in ("paper", "mdr"):
             for kind in ("envelope", "cyclic"):
                 for ext in ("nc", "csv", "png"):
                     assert (tmp_path / f"joint_{kind}_{name}_{law}.{ext}").stat().st_size > 0
     assert (tmp_path / "joint_properties.png").stat().st_size > 20_000
-    out = capsys.readouterr().out
+    out = done.stdout
     assert "R1 paper   at 500 MPa: k_s =" in out and "crossing mdr: S1 above R1 at first" in out
 
 
+@pytest.mark.statistical
 def test_sweep_command_over_law_n_and_direction_then_info_and_plot(tmp_path, monkeypatch, capsys):
     """An isotropic interface (b = c = d = 0) resists shear the same in every direction (within Monte Carlo error)."""
     monkeypatch.chdir(tmp_path)

@@ -73,6 +73,7 @@ def test_band_standard_error_matches_replica_scatter():
 
 @pytest.mark.parametrize("params, delta_um", [(R1, (18.0, 0.0, 0.0)), (S1, (6.0, 2.0, 0.0)),
                                               (S1, (5.8, 10.0, -3.0)), (R2, (150.0, 20.0, 0.0))])
+@pytest.mark.statistical
 def test_band_estimate_is_unbiased(params, delta_um):
     d = np.array(delta_um) * um
     band = reach_height(params, d[0], math.hypot(d[1], d[2]))
@@ -164,6 +165,7 @@ def _reference_closure(params, sigma):
     return optimize.brentq(f, 1e-7, 60 * params.beta, xtol=1e-16, rtol=1e-13)
 
 
+@pytest.mark.statistical
 def test_simulate_pruned_closure_is_unbiased():
     path = paths.LoadPath((paths.Stage((S, D, D), (300e6, 0, 0), 3),))
     ds = simulate_pruned(R1, path, 20000, seed=1, sampler="random")

@@ -295,6 +295,7 @@ def _mc_stress(p, delta, n, seed):
     (R1.replace(R_m=20e-6, R_sigma=5e-6, b=0.8, c=0.1, d=-0.05), (15, 6, 8)),
     (R1.replace(R_m=20e-6, R_sigma=5e-6, mu=0.0), (15, 10, 0)),
 ])
+@pytest.mark.statistical
 def test_against_independent_monte_carlo(params, disp):
     delta = np.array(disp, float) * um
     sig = ref.stress(params, delta)

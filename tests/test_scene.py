@@ -1,5 +1,7 @@
 """Scene files: unit parsing, the shipped scenes, and broken files giving one clear error."""
 
+import math
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -17,27 +19,45 @@ SHIPPED = sorted(p for p in SCENARIOS.glob("*.toml") if not p.name.startswith("s
     ("15 um", "m", 15e-6), ("3.52 um", "m", 3.52e-6), ("0.1 mm", "m", 0.1e-3), ("2 cm", "m", 0.02),
     ("1.5e3 nm", "m", 1.5e-6), ("-3 um", "m", -3e-6), ("1 m", "m", 1.0), (" 8.82 mm ", "m", 8.82e-3),
     ("500 MPa", "Pa", 500e6), ("80 GPa", "Pa", 80e9), ("0.5 kPa", "Pa", 500.0), ("12 Pa", "Pa", 12.0),
+    ("1 mPa", "Pa", 1e-3),
     ("200 /mm2", "m-2", 200e6), ("200 1/mm^2", "m-2", 200e6), ("2e8 m-2", "m-2", 2e8), ("0.2 1/um2", "m-2", 0.2e12),
-    (15e-6, "m", 15e-6), (500000000, "Pa", 5e8), (0.6, "1", 0.6), (1, "1", 1.0),
+    ("200 1/mm²", "m-2", 200e6), ("200 mm⁻²", "m-2", 200e6), ("200 mm-2", "m-2", 200e6), ("200 mm**-2", "m-2", 200e6),
+    (15e-6, "m", 15e-6), (500000000, "Pa", 5e8), (0.6, "1", 0.6), (1, "1", 1.0), ("0.6", "1", 0.6), ("60 %", "1", 0.6),
+    # units beyond the SI prefixes come from pint: 1 inch = 25.4 mm, 1 psi = 1 lbf / inch² (exact definitions)
+    ("2 inch", "m", 0.0508), ("1 psi", "Pa", float(Fraction(45359237, 10**8) * Fraction(980665, 10**5)
+                                                  / Fraction(254, 10**4) ** 2)),
+    ("0.5 rad", "rad", 0.5), (0.5, "rad", 0.5),
 ])
 def test_valid_quantities_are_exact_in_si(text, unit, expected):
     assert parse_quantity(text, unit, "x") == expected  # exact: "15 um" is the float 15e-6
 
 
+def test_angles_in_degrees():
+    assert parse_quantity("30 deg", "rad", "x") == pytest.approx(math.pi / 6, rel=1e-15)
+    assert parse_quantity("90 °", "rad", "x") == pytest.approx(math.pi / 2, rel=1e-15)
+
+
 @pytest.mark.parametrize("value, unit, message", [
-    ("500 MPA", "Pa", "unknown unit 'MPA'; a stress is needed (valid: Pa, kPa, MPa, GPa)"),
-    ("10 MPa", "m", "'MPa' is a stress unit; a length is needed"),
-    ("10 um", "Pa", "'um' is a length unit; a stress is needed"),
-    ("15 furlongs", "m", "unknown unit 'furlongs'"),
-    ("15", "m", "has no unit"),
+    ("3 m", "Pa", "x = '3 m': expected a stress (Pa), got a length (m)"),
+    ("500 MPA", "Pa", "x = '500 MPA': unknown unit 'MPA'; expected a stress (Pa) such as Pa, kPa, MPa, GPa"),
+    ("10 MPa", "m", "expected a length (m), got a stress (MPa)"),
+    ("10 um", "Pa", "expected a stress (Pa), got a length (um)"),
+    ("2 um", "m-2", "expected an areal density (m-2), got a length (um)"),
+    ("2 J", "m", "expected a length (m), got a quantity of dimension [mass] * [length] ** 2 / [time] ** 2 (J)"),
+    ("15 flurbs", "m", "unknown unit 'flurbs'; expected a length (m)"),
+    ("5 um//2", "m", "unknown unit 'um//2'"),
+    ("15", "m", "x = '15' has no unit (write e.g. \"15 um\", or a plain number in m)"),
+    ("30", "rad", "has no unit (write e.g. \"30 deg\""),
+    ("30 percent", "rad", "expected an angle (rad), got a dimensionless number (percent)"),
     ("fifteen um", "m", "is not a quantity"),
-    ("0.6 MPa", "1", "x is dimensionless, write a plain number"),
+    ("2*3 um", "m", "unknown unit '*3 um'"),  # pint reads units here, never arithmetic
+    ("0.6 MPa", "1", "expected a dimensionless number (1), got a stress (MPa)"),
     (True, "m", "is not a number"),
     ([1, 2], "m", "is not a number or a quantity string"),
     (float("nan"), "m", "is not finite"),
     ("1e400 um", "m", "is not finite"),
 ])
-def test_invalid_quantities_name_value_and_valid_units(value, unit, message):
+def test_invalid_quantities_name_value_and_expected_dimension(value, unit, message):
     with pytest.raises(SceneError, match="^x = ") as err:
         parse_quantity(value, unit, "x")
     assert message in str(err.value)
@@ -98,12 +118,19 @@ BROKEN = {
                         "R_m = -5e-05 is out of range (valid range: > 0)"),
     "negative friction": ({"parameters": {"preset": "R1", "mu": -0.1}}, "mu = -0.1 is out of range (valid range: >= 0)"),
     "unknown parameter": ({"parameters": {"preset": "R1", "Rm": "50 um"}}, "unknown key 'Rm' (valid: preset, N"),
-    "wrong unit": ({"parameters": {"preset": "R1", "G": "80 um"}}, "'um' is a length unit; a stress is needed"),
+    "wrong unit": ({"parameters": {"preset": "R1", "G": "80 um"}},
+                   "[parameters] G = '80 um': expected a stress (Pa), got a length (um)"),
     "sweep file": ({"sweep": {"replicas": 2}}, "it is a sweep file, run it with `asperity-sim sweep`"),
     "unknown top key": ({"stages": []}, "unknown key 'stages' (valid: title, parameters, run, output, path)"),
     "misspelt run key": ({"run": {"sede": 1}}, "did you mean 'seed'?"),
     "negative n": ({"run": {"n": -5}}, "n = -5 is out of range"),
-    "float n": ({"run": {"n": 1.5}}, "n = 1.5 is out of range"),
+    "float n": ({"run": {"n": 1.5}}, "n = 1.5 is not an integer (valid range: integer in [1, "),
+    "quoted n": ({"run": {"n": "100"}}, "[run] n = '100' is not an integer: write 100 without quotes (valid range"),
+    "quoted seed": ({"run": {"seed": "7"}}, "[run] seed = '7' is not an integer: write 7 without quotes"),
+    "boolean k": ({"run": {"k": True}}, "[run] k = True is not an integer"),
+    "quoted increments": ({"path": {"stages": [{"increments": "3", "Delta_1": 0, "Delta_2": 0, "Delta_3": 0}]}},
+                          "stage 1: increments = '3' is not an integer"),
+    "quoted snapshot": ({"output": {"snapshots": ["2"]}}, "snapshots step = '2' is not an integer"),
     "negative seed": ({"run": {"seed": -1}}, "seed = -1 is out of range (valid range: integer >= 0)"),
     "unknown law": ({"run": {"law": "hertz"}}, "law = 'hertz' is not known (valid: paper, mdr)"),
     "unknown sampler": ({"run": {"sampler": "lhs"}}, "sampler = 'lhs' is not known (valid: random, sobol)"),
@@ -123,7 +150,7 @@ BROKEN = {
     "tension": ({"path": {"stages": [{"increments": 2, "sigma_1": "-5 MPa", "Delta_2": 0, "Delta_3": 0}]}},
                 "is a tension, which the interface cannot carry"),
     "stage length as stress": ({"path": {"stages": [{"increments": 2, "sigma_1": "5 um", "Delta_2": 0,
-                                                     "Delta_3": 0}]}}, "'um' is a length unit; a stress is needed"),
+                                                     "Delta_3": 0}]}}, "stage 1: sigma_1 = '5 um': expected a stress (Pa), got a length (um)"),
     "unknown stage key": ({"path": {"stages": [{"increments": 2, "Delta_1": 0, "Delta_2": 0, "Delta_3": 0,
                                                 "Delta_4": 0}]}}, "stage 1: unknown key 'Delta_4'"),
     "bad max_fraction": ({"path": {"stages": [{"increments": 2, "Delta_1": 0, "Delta_2": 0, "Delta_3": 0,

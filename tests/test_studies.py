@@ -1,4 +1,9 @@
-"""The studies under studies/ run at tiny size, and their bookkeeping is right."""
+"""The studies under studies/ run at tiny size as programs, and their bookkeeping is right.
+
+The quick runs start the scripts as programs (``python studies/x.py --quick``).  The tests of
+the mdr study's own bookkeeping (which runs it reads, the cheapest (n, k)) load that one script
+as a module from its file, without touching ``sys.path``: those functions exist only there.
+"""
 
 import importlib.util
 import math
@@ -26,9 +31,11 @@ def mdr_convergence():
 
 
 @pytest.mark.slow
-def test_mdr_convergence_quick_run(mdr_convergence, tmp_path, capsys):
+def test_mdr_convergence_quick_run(tmp_path, run_script):
     """The study at smoke size writes its three outputs; every variable has units and a long name."""
-    assert mdr_convergence.main(["--quick", "--outdir", str(tmp_path)]) == 0
+    done = run_script("studies/mdr_convergence.py", "--quick", "--outdir", tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "wrote" in done.stdout
     ds = xr.open_dataset(tmp_path / "mdr_convergence.nc", engine="netcdf4")
     for name in list(ds.data_vars) + ["n", "k"]:
         assert ds[name].attrs.get("units") and ds[name].attrs.get("long_name"), name
@@ -55,7 +62,52 @@ def test_mdr_convergence_quick_run(mdr_convergence, tmp_path, capsys):
     assert "## For the README" in table
     assert "| peak shear resistance | 1 % |" in table and "| dissipation per cycle | 0.1 % |" in table
     assert (tmp_path / "mdr_convergence.png").stat().st_size > 0
-    assert "wrote" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_convergence_study_quick_run(tmp_path, run_script):
+    """The error-against-time study (issue 5) at smoke size: every method, every scene, its three outputs."""
+    done = run_script("studies/convergence.py", "--quick", "--outdir", tmp_path)
+    assert done.returncode == 0, done.stderr
+    ds = xr.open_dataset(tmp_path / "convergence.nc", engine="netcdf4")
+    assert set(ds["error"].dims) == {"method", "n", "replica", "quantity"}
+    assert set(ds.method.values) == {"mc", "rqmc", "pruned", "pruned_mc", "grid", "grid_forces"}
+    # the two grid variants differ only in Step 4: same errors, the published one costs more
+    for v in ("grid", "grid_forces"):
+        assert np.isfinite(ds["rms_error"].sel(method=v)).any()
+    np.testing.assert_array_equal(ds["error"].sel(method="grid").values, ds["error"].sel(method="grid_forces").values)
+    for var in ("error", "wall_time", "rms_error", "mean_wall_time"):
+        assert ds[var].attrs["units"] and ds[var].attrs["long_name"]
+    for m in ds.method.values:
+        e = ds["rms_error"].sel({"method": m}).values
+        assert np.all(e[np.isfinite(e)] >= 0.0) and np.isfinite(e).any()
+    # randomised QMC on a smooth scene: 4x the points must cut the RMS curve error
+    e = ds["rms_error"].sel({"method": "rqmc", "quantity": "fig13_S1/curve"}).values
+    e = e[np.isfinite(e)]
+    assert e[-1] < e[0]
+    assert ds.attrs["source"].endswith("studies/convergence.py")
+    ds.close()
+    table = (tmp_path / "convergence.md").read_text()
+    assert "| fig13_R1 | rqmc |" in table and "Speed-up against the paper's grid method" in table
+    assert "| fig11_R1 | 1e-02 |" in table and "grid_forces time" in table
+    assert (tmp_path / "convergence.png").stat().st_size > 0
+
+
+def test_timing_repeats_only_short_runs():
+    """A short run is timed REPEATS times and its median kept; a long one once; the result is the first run's."""
+    from asperity_sim import timing
+
+    times = iter([0.05, 0.30, 0.01, 0.50])
+    calls = []
+
+    def run():
+        calls.append(1)
+        return len(calls), next(times)
+
+    result, seconds = timing.timed(run)
+    assert (result, seconds, len(calls)) == (1, float(np.median([0.05, 0.30, 0.01])), 3)
+    result, seconds = timing.timed(run)
+    assert (result, seconds, len(calls)) == (4, 0.50, 4)
 
 
 def fake_run(stage, ratio, dissipation):

@@ -59,6 +59,7 @@ def fine_ratios():
     return _ratios(1024, 16, range(4))
 
 
+@pytest.mark.statistical
 @needs_st
 def test_summit_density_and_curvature_match_nayak(fine_ratios):
     for name, r in zip(("summit density", "mean curvature"), fine_ratios):
@@ -341,19 +342,15 @@ def test_cli_fit_scene_runs(tmp_path):
 
 # -- BEM scenario -----------------------------------------------------------------------
 
+@pytest.mark.slow
 @needs_st
-def test_bem_scenario_quick(tmp_path, capsys):
+def test_bem_scenario_quick(tmp_path, run_script):
     """scenarios/bem_closure.py at tiny size: outputs with units, BEM on the intended area range."""
     pytest.importorskip("tamaas")
-    import importlib
-    import sys
-    from pathlib import Path
-
     import xarray as xr
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))
-    bem_closure = importlib.import_module("bem_closure")
-    assert bem_closure.main(["--quick", "--outdir", str(tmp_path)]) == 0
+    done = run_script("scenarios/bem_closure.py", "--quick", "--outdir", tmp_path)
+    assert done.returncode == 0, done.stderr
     assert (tmp_path / "bem_closure.png").stat().st_size > 10_000
     ds = xr.open_dataset(tmp_path / "bem_closure.nc", engine="netcdf4")
     for v in list(ds.data_vars) + list(ds.coords):
@@ -363,24 +360,17 @@ def test_bem_scenario_quick(tmp_path, capsys):
     assert np.all(np.diff(ds.bem_closure.values) > 0)
     # the models answer at the BEM pressures: sigma_1 at the model closure is the BEM pressure
     assert np.all(np.isfinite(ds.closure_ratio.values)) and np.all(ds.model_closure.values > 0)
-    assert "| p [MPa] |" in capsys.readouterr().out
+    assert "| p [MPa] |" in done.stdout
 
 
-@needs_st
 def test_bem_hertz_sanity():
-    """The tamaas call used by the scenario reproduces Hertz for one sphere (area within pixel error)."""
+    """The tamaas call used by the scenario (surfaces.bem_contact) reproduces Hertz for one sphere."""
     pytest.importorskip("tamaas")
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))
-    import bem_closure
-
     n, size, R, E_star = 256, 1e-3, 5e-3, 100e9
     x = (np.arange(n) + 0.5) * size / n - size / 2
     h = -(x[:, None] ** 2 + x[None, :] ** 2) / (2 * R)
     p = 2e5  # mean pressure [Pa] over the cell
-    closure, _, area, _ = bem_closure.bem(h, (size, size), E_star, [p], 1e-12)[:, 0]
+    closure, _, area, _ = sf.bem_contact(h, (size, size), E_star, [p], 1e-12)[:, 0]
     a = (3 * p * size**2 * R / (4 * E_star)) ** (1 / 3)  # Hertz contact radius
     assert area * size**2 == pytest.approx(math.pi * a**2, rel=0.05)
     # periodic images add a uniform compliance, so the closure is only near Hertz's a²/R

@@ -148,7 +148,8 @@ def test_sweep_file_merges_the_base_scene(tmp_path):
     ("[sweep.grid]\nRm = [1e-6]\n", "[sweep.grid] unknown key 'Rm'"),
     ("[sweep.grid]\nmu = 0.5\n", "must be a non-empty list"),
     ("[sweep.grid]\nmu = [0.5, 0.5]\n", "repeats a value"),
-    ("[sweep.grid]\nR_m = [\"40 MPa\"]\n", "'MPa' is a stress unit; a length is needed"),
+    ("[sweep.grid]\nR_m = [\"40 MPa\"]\n", "[sweep.grid] R_m = '40 MPa': expected a length (m), got a stress (MPa)"),
+    ("[sweep]\nreplicas = \"3\"\n", "replicas = '3' is not an integer"),
     ("[sweep.grid]\nnu = [0.3, 0.7]\n", "sweep grid point {'nu': 0.7}: nu = 0.7 is out of range"),
 ])
 def test_broken_sweep_files(tmp_path, text, message):

@@ -63,13 +63,14 @@ grid_forces ~10 and grid ~20 stress evaluations per increment; halving s costs ~
 one with grid_forces) and 4, 2, 1.4, 1 for the closure (s = 0.7 would take ~10-20 min there:
 1e9 points per evaluation).
 
-Run:   python scenarios/convergence.py            (full study: 30 min on this 2-core machine at load
+Run:   python studies/convergence.py              (full study: 30 min on this 2-core machine at load
                                                    average 1.5-2, half of it the grid runs at s = 1)
-       python scenarios/convergence.py --quick    (smoke run, about 1 min)
+       python studies/convergence.py --quick      (smoke run, about 1 min)
 Writes outputs/convergence.nc (dims method, n, replica, quantity; wall_time over method, n,
 replica, scene), outputs/convergence.png (log-log error of the curve against wall time, one
 line per method, one panel per scene) and outputs/convergence.md (table for the README:
-error reached at 1 s and 10 s, time to reach 1 % and 0.1 %, speed-up against the grid).
+error reached at 1 s and 10 s, time to reach 1 % and 0.1 %, speed-up against the grid; shown in
+docs/performance.md).
 """
 
 from __future__ import annotations
@@ -95,16 +96,16 @@ import numpy as np
 import xarray as xr
 from scipy import optimize
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))  # the Fig. 13 path of its scene
 from constant_normal_shear import shear_path  # noqa: E402
 
 from asperity_sim import (Population, SolverSettings, __version__, gridmethod, paths, presets,  # noqa: E402
                           reference, simulate)
 from asperity_sim.pruning import simulate_pruned  # noqa: E402
+from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed  # noqa: E402
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 SETTINGS = SolverSettings(rtol=1e-9)
-REPEAT_BELOW, REPEATS = 0.2, 3  # a run shorter than REPEAT_BELOW [s] is timed REPEATS times (median)
 S, D = paths.STRESS, paths.DISPLACEMENT
 
 
@@ -263,14 +264,6 @@ def run_grid(scene, s, full_tangent=True):
                                   full_tangent=full_tangent)
     return ds, ds.attrs["wall_time_s"]
 
-
-def timed(run):
-    """(result, wall time [s]) of ``run() -> (result, seconds)``, with the median time of REPEATS runs
-    when the first is shorter than REPEAT_BELOW (every method alike; the result is the first run's)."""
-    result, seconds = run()
-    if seconds < REPEAT_BELOW:
-        seconds = float(np.median([seconds] + [run()[1] for _ in range(REPEATS - 1)]))
-    return result, seconds
 
 
 METHODS = {
@@ -558,8 +551,8 @@ def main(argv=None):
                 "quantity_scene": ("quantity", q_scene, {"long_name": "scene of the quantity"})},
         attrs={
             "title": "Error against run time (issue 5)",
-            "source": f"asperity_sim {__version__}, scenarios/convergence.py",
-            "history": f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} python scenarios/convergence.py "
+            "source": f"asperity_sim {__version__}, studies/convergence.py",
+            "history": f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} python studies/convergence.py "
                        + " ".join(argv if argv is not None else sys.argv[1:]),
             "Conventions": "CF-1.8",
             "numba_threads": numba.get_num_threads(),

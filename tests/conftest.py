@@ -1,0 +1,27 @@
+"""Shared test fixtures.  Tests import only the package; scripts under scenarios/ and studies/
+are run as programs (``run_script``), never imported."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def run_script(tmp_path):
+    """``run_script("scenarios/x.py", "--quick", ...)``: run a script of the repository as a program.
+
+    It runs in a fresh Python process in ``tmp_path`` with this checkout's package first on the
+    path, and returns the ``subprocess.CompletedProcess`` (text stdout and stderr captured).
+    """
+    def run(script, *args, timeout=900):
+        path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+        return subprocess.run([sys.executable, str(ROOT / script), *(str(a) for a in args)], cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": path}, capture_output=True, text=True,
+                              timeout=timeout)
+
+    return run
