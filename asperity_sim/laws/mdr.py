@@ -107,6 +107,26 @@ def spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt, lm_r, dlim, can_stic
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
+def continuing_spring(ws, wt, limit, dlim, can_stick):
+    """:func:`spring_step` of a spring that continues from its vector (a = 1, da = 0), trial vector (ws, wt).
+
+    Returns (stick, F_s, F_t, J10, J11, J12, J20, J22); the same stick/slip decision as spring_step.
+    """
+    m2 = ws * ws + wt * wt
+    stick = can_stick & (m2 <= limit * limit)
+    mm = fsqrt(m2)
+    inv_m = 1.0 / mm if mm > 0.0 else 0.0
+    ratio = limit * inv_m
+    es, et = ws * inv_m, wt * inv_m
+    return (stick, ws if stick else ratio * ws, wt if stick else ratio * wt,
+            0.0 if stick else dlim * es,
+            1.0 if stick else ratio * (1.0 - es * es),
+            0.0 if stick else -ratio * es * et,
+            0.0 if stick else dlim * et,
+            1.0 if stick else ratio * (1.0 - et * et))
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
     """(f_n, k_n, n_in, rho, drho): Hertz force and stiffness, springs in contact, and the Coulomb scale.
 
@@ -244,14 +264,14 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     n_stick = 0
     dlim0, dlim1 = lm * rho, lm * drho
     n_held = min(n_in, n_store)
-    for i in range(min((n_held + LANES - 1) // LANES * LANES, n_store)):  # whole vectors: no scalar remainder
+    # springs in contact at the committed overlap (u_c > 0) continue from their vectors: the lean loop
+    n_cont = min(entering_tail(0, dn_c, dn_c, c)[0], n_held)
+    for i in range(min((n_cont + LANES - 1) // LANES * LANES, n_store)):  # whole vectors: no scalar remainder
         x2 = spring_x2(c, i)
-        u, u_c = dn - x2, dn_c - x2
-        wcs, wct = float(w[0, i]), float(w[1, i])
-        memory = (u_c > 0.0) | (wcs != 0.0) | (wct != 0.0)
-        _, _, stick, _, fs, ft, j10, j11, j12, j20, j22 = spring_step(wcs, wct, memory, u, u_c, 0.0, gap, dds, ddt,
-                                                                      lm_r, dlim0 + u * dlim1, can_stick)
-        inc = i < n_held  # padding springs add nothing
+        u = dn - x2
+        ws, wt = float(w[0, i]) + dds, float(w[1, i]) + ddt
+        stick, fs, ft, j10, j11, j12, j20, j22 = continuing_spring(ws, wt, lm_r * u, dlim0 + u * dlim1, can_stick)
+        inc = i < n_cont  # padding springs add nothing
         Fs += fs if inc else 0.0
         Ft += ft if inc else 0.0
         J10 += j10 if inc else 0.0
@@ -260,6 +280,21 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
         J20 += j20 if inc else 0.0
         J22 += j22 if inc else 0.0
         n_stick += 1 if stick & inc else 0
+    for i in range(n_cont, n_held):  # entering this increment, or kept memory across the edge (coarsening)
+        x2 = spring_x2(c, i)
+        u, u_c = dn - x2, dn_c - x2
+        wcs, wct = float(w[0, i]), float(w[1, i])
+        memory = (u_c > 0.0) | (wcs != 0.0) | (wct != 0.0)
+        _, _, stick, _, fs, ft, j10, j11, j12, j20, j22 = spring_step(wcs, wct, memory, u, u_c, 0.0, gap, dds, ddt,
+                                                                      lm_r, dlim0 + u * dlim1, can_stick)
+        Fs += fs
+        Ft += ft
+        J10 += j10
+        J11 += j11
+        J12 += j12
+        J20 += j20
+        J22 += j22
+        n_stick += 1 if stick else 0
     n_slip = min(n_in, n_store) - n_stick
     m = n_in - n_store
     if m > 0:  # every entering spring takes u_i / gap of the increment: all stick or all slip together
@@ -366,8 +401,10 @@ def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
 def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out):
-    """:func:`springs` of a commit: writes the new springs to ``w_out`` and returns the energies."""
-    return springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, True)
+    """:func:`springs` of a commit: writes the new springs to ``w_out``; (n_springs, n_slip, work, d_stored,
+    dissipation) (no force or Jacobian: LLVM drops their arithmetic)."""
+    out = springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, True)
+    return out[8], out[9], out[10], out[11], out[12]
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
@@ -376,7 +413,8 @@ def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled
 
     One array for both, so that LLVM sees each spring read before it is written and vectorises.
     """
-    return springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w, True)
+    out = springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w, True)
+    return out[8], out[9], out[10], out[11], out[12]
 
 
 @numba.njit(cache=True)
@@ -428,7 +466,7 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     coarsenings = 0
     stored = 0.0
     if n_need <= n_store:  # the new springs fit: written over the committed ones
-        _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs_in_place(
+        n_springs, n_slip, work, _, diss = commit_springs_in_place(
             dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh)
         code = state_code(n_springs, n_slip)
         for i in range(n_springs):
@@ -436,7 +474,7 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
         w[:, n_springs:] = 0.0
     else:
         buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
-        _, _, _, _, _, _, _, _, n_springs, n_slip, work, _, diss = commit_springs(
+        n_springs, n_slip, work, _, diss = commit_springs(
             dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
         code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
         while n_springs > n_store:  # coarsen: the contact outgrew its springs
