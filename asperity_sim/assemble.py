@@ -628,7 +628,9 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
-    for ic in numba.prange(n_chunks):
+    stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
+    for kk in numba.prange(n_chunks):
+        ic = (kk * stride) % n_chunks
         acc = np.zeros(N_ACC)
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
         if has_birth:
@@ -722,7 +724,9 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
-    for ic in numba.prange(n_chunks):
+    stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
+    for kk in numba.prange(n_chunks):
+        ic = (kk * stride) % n_chunks
         acc = np.zeros(N_COMMIT)
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         geo = np.empty((N_GEO, BLOCK))
