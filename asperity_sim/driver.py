@@ -46,7 +46,7 @@ from .domain import DomainMonitor, LawDomainWarning
 from .errors import (ConvergenceError, OutputWriteError, SimulationError, StressNotReachableError,  # noqa: F401
                      WallTimeExceededError, _Deadline)
 from .state import SPRING_DTYPES, ContactState
-from .stepping import (TRUST, _cubic_predict, _failure, _next_ds, _Position, _predict, _ramped,
+from .stepping import (TRUST, _cubic_predict, _extrapolate, _failure, _next_ds, _Position, _predict, _ramped,
                        _unreachable_by_symmetry, effective_stiffness, length_scale, solution_stderr)
 from .variables import DOMAIN_VARIABLES, HISTORY_VARIABLES, STEP_VARIABLES, Var
 
@@ -332,13 +332,16 @@ class _Run:
                    theta_am=[_theta_am(params, max(0.0, params.r_o + d1)) for d1 in deltas[:m, 0]],
                    mean_theta=out[:m, O_TH], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
                    **self.domain_flags_of(rec.size, deltas[:m], out[:m, O_STRESS:O_STRESS + 3]))
-        # the loop's position after the last of them (the point before it feeds the cubic predictor)
+        # the loop's position after the last of them (the points before it feed the predictors), as the loop
+        # would leave it: each point before an increment becomes the previous one in turn
         before, s_before = (self.delta, pos.s) if m == 1 else (deltas[m - 2], plan[m - 2][0])
         s_last, ds_last = plan[m - 1]
+        for i in range(m - 1):
+            pos.advance(pos.s if i == 0 else plan[i - 1][0], self.delta if i == 0 else deltas[i - 1], pos.prev_slope)
         self.ev = evaluation_from(deltas[m - 1], out[m - 1])
         self.delta = deltas[m - 1].copy()
         self.state.commit(self.delta)  # a path-independent law under policy follow: only delta_c moves
-        pos.prev_s, pos.prev_delta, pos.prev_slope = s_before, before, (self.delta - before) / (s_last - s_before)
+        pos.advance(s_before, before, (self.delta - before) / (s_last - s_before))
         pos.s, pos.ds = s_last, _next_ds(stage, ds_last, 0, 0, nominal, smallest)
         return True
 
@@ -370,7 +373,7 @@ class _Run:
                         raise failure
                     pos.start_delta, pos.start_stress = self.delta.copy(), self.ev.stress.copy()
                     pos.s, pos.ds = 0.0, nominal
-                    pos.prev_s = math.nan
+                    pos.forget()
                     pos.k_ref = (effective_stiffness(self.ev, free, _ramped(free, pos.start_stress, end))
                                  if free.any() else 0.0)
                     pos.started = True
@@ -408,7 +411,8 @@ class _Run:
                     guess = _predict(self.ev, self.delta, target_delta, target_stress, free, TRUST * self.length)
                     slope = (guess - self.delta) / (s_new - s)  # d Delta / d s at s (free components)
                     if free.any() and not math.isnan(pos.prev_s):
-                        guess = _cubic_predict(guess, self.delta, slope, pos, s, s_new, free)
+                        guess = (_cubic_predict(guess, self.delta, slope, pos, s, s_new, free) if self.law.path_independent
+                                 else _extrapolate(guess, self.delta, pos, s, s_new, free))
                     # fresh contacts get springs that fit their overlap at the stage's end point
                     self.state.reference = np.where(free, self.delta, end)
                     try:
@@ -428,7 +432,7 @@ class _Run:
                         ds *= 0.5
                         continue
                     consistent = False
-                    pos.prev_s, pos.prev_delta, pos.prev_slope = s, self.delta, slope
+                    pos.advance(s, self.delta, slope)
                     ev = self.ev = result.evaluation
                     self.delta = delta = ev.delta.copy()
                     c = self.state.commit(delta, ev.n_active)

@@ -160,6 +160,11 @@ def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> N
     if not np.isnan(prev[0]) and not (np.all(np.isfinite(prev)) and 0.0 <= prev[0] <= 1.0):
         raise CheckpointError(f"{where}: array pos_prev = {prev.tolist()} (valid: NaN first (no previous point) or "
                               "s in [0, 1] and a finite Delta and slope)")
+    older = require(arrays, "pos_older", shape=(2, 4), dtype=f8, finite=False)
+    for row in older:
+        if not np.isnan(row[0]) and not (np.all(np.isfinite(row)) and 0.0 <= row[0] <= 1.0):
+            raise CheckpointError(f"{where}: array pos_older = {older.tolist()} (valid: rows (s, Delta) with NaN s "
+                                  "(no point) or s in [0, 1] and a finite Delta)")
     if birth:
         require(arrays, "state_theta_birth", shape=(n,), dtype=f8, finite=False, lo=0.0, hi=half_pi)
         if np.isinf(arrays["state_theta_birth"]).any():
@@ -185,7 +190,7 @@ def save(run, path, *, every, wall_time) -> None:
               "pos_i": np.array([pos.i_stage, int(pos.started)], dtype=np.int64),
               "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
               "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress,
-              "pos_prev": np.concatenate([[pos.prev_s], pos.prev_delta, pos.prev_slope])}
+              "pos_prev": np.concatenate([[pos.prev_s], pos.prev_delta, pos.prev_slope]), "pos_older": pos.older}
     arrays.update({f"state_{k}": v for k, v in run.state.state_arrays().items()})
     history = run.law.history
     if history is not None:
@@ -274,7 +279,8 @@ def restore(saved: Saved, *, params, n_stages, law, policy, k, spring_dtype, var
         pi, pf, prev = arrays["pos_i"], arrays["pos_f"], arrays["pos_prev"]
         pos = _Position(i_stage=int(pi[0]), started=bool(pi[1]), s=float(pf[0]), ds=float(pf[1]), k_ref=float(pf[2]),
                         start_delta=arrays["pos_start_delta"].copy(), start_stress=arrays["pos_start_stress"].copy(),
-                        prev_s=float(prev[0]), prev_delta=prev[1:4].copy(), prev_slope=prev[4:7].copy())
+                        prev_s=float(prev[0]), prev_delta=prev[1:4].copy(), prev_slope=prev[4:7].copy(),
+                        older=arrays["pos_older"].copy())
         snapshots = []
         for i, step in enumerate(meta["snapshot_steps"]):
             prefix = f"snap{i}_"

@@ -37,6 +37,21 @@ class _Position:
     prev_s: float = math.nan  # its fraction of the stage
     prev_delta: np.ndarray = field(default_factory=lambda: np.zeros(3))  # its Delta [m]
     prev_slope: np.ndarray = field(default_factory=lambda: np.zeros(3))  # its d Delta / d s [m]
+    # the two converged points before that one, rows (s, Delta_1, Delta_2, Delta_3) (s NaN: none), for the
+    # path extrapolation of a history law (:func:`_extrapolate`)
+    older: np.ndarray = field(default_factory=lambda: np.full((2, 4), np.nan))
+
+    def advance(self, s, delta, slope):
+        """The point (s, delta) with its slope becomes the previous one; the older ones shift back."""
+        if not math.isnan(self.prev_s):
+            self.older[1] = self.older[0]
+            self.older[0, 0], self.older[0, 1:] = self.prev_s, self.prev_delta
+        self.prev_s, self.prev_delta, self.prev_slope = s, delta, slope
+
+    def forget(self):
+        """No previous point (a stage starts)."""
+        self.prev_s = math.nan
+        self.older = np.full((2, 4), np.nan)
 
 
 def _next_ds(stage, ds, iterations, cuts, nominal, smallest):
@@ -172,6 +187,39 @@ def _cubic_predict(linear, delta, slope, pos, s, s_new, free):
         cubic = b0 * x0[k] + b1 * m0[k] + b2 * x1[k] + b3 * m1[k]
         if abs(cubic - lin[k]) <= abs(lin[k] - x1[k]):  # False for NaN
             guess[k] = cubic
+    return guess
+
+
+def _extrapolate(linear, delta, pos, s, s_new, free):
+    """Free components of the guess from the cubic through the last four converged points (history laws).
+
+    A history law's tangent at the end of an increment is that of the increment (springs that
+    entered during it, slips that began), not the one the next increment starts with, so the
+    tangent-based predictors are first order at best; the path Delta(s) itself is smooth between
+    stick-slip events, and its Lagrange extrapolation through the points (older, prev, now) is
+    third order.  Kept under the same conditions as :func:`_cubic_predict` (the new increment at
+    most twice the last one, and the correction smaller than the tangent step); otherwise ``linear``.
+    """
+    if math.isnan(pos.prev_s) or math.isnan(pos.older[1, 0]):
+        return linear
+    h0 = s - pos.prev_s
+    if not 0.0 < s_new - s <= 2.0 * h0:
+        return linear
+    nodes = [(float(pos.older[1, 0]), pos.older[1, 1:].tolist()), (float(pos.older[0, 0]), pos.older[0, 1:].tolist()),
+             (pos.prev_s, pos.prev_delta.tolist()), (s, delta.tolist())]
+    weights = []
+    for a, (sa, _) in enumerate(nodes):
+        w = 1.0
+        for b, (sb, _) in enumerate(nodes):
+            if b != a:
+                w *= (s_new - sb) / (sa - sb)
+        weights.append(w)
+    guess = linear.copy()
+    lin, x1 = linear.tolist(), delta.tolist()
+    for k in np.flatnonzero(free).tolist():
+        poly = sum(w * x[k] for w, (_, x) in zip(weights, nodes))
+        if abs(poly - lin[k]) <= abs(lin[k] - x1[k]):  # False for NaN
+            guess[k] = poly
     return guess
 
 

@@ -228,16 +228,35 @@ print(" ".join(out))
 """
 
 
+BITS_MDR = """
+import numba, numpy as np
+from asperity_sim import presets, simulate
+from asperity_sim.paths import LoadPath, Stage
+S, D = "stress", "displacement"
+path = LoadPath((Stage((S, D, D), (100e6, 0, 0), 3), Stage((S, D, D), (100e6, 3e-6, 1e-6), 4),
+                 Stage((S, D, D), (100e6, -1e-6, 0), 3)))
+out = []
+for th in (1, 2):
+    numba.set_num_threads(th)
+    ds = simulate(presets.R1, path, n=20000, seed=3, law="mdr", k=8)
+    out += [v.hex() for v in np.concatenate([ds.stress.values.ravel(), ds.displacement.values.ravel(),
+                                             ds.dissipation.values.ravel()])]
+print(" ".join(out))
+"""
+
+
 @pytest.mark.slow
-def test_kernel_bits_equal_compiled_and_from_cache(tmp_path):
+@pytest.mark.parametrize("script", [BITS, BITS_MDR], ids=["paper", "mdr"])
+def test_kernel_bits_equal_compiled_and_from_cache(tmp_path, script):
     """The same bits in a process that compiles the kernels and in one that loads them from the
-    numba cache, on 1 and 2 threads (a kernel whose sums LLVM may reassociate fails this)."""
+    numba cache, on 1 and 2 threads (a kernel whose sums LLVM may reassociate fails this); for the
+    ``mdr`` law, whose spring loops LLVM may reassociate, along a path with history."""
     import os
     import subprocess
     import sys
 
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    runs = [subprocess.run([sys.executable, "-c", BITS], env=env, capture_output=True, text=True, check=True).stdout
+    runs = [subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True).stdout
             for _ in range(2)]
     assert any((tmp_path / "cache").rglob("*.nbi"))  # the second process did load a cache
     first = runs[0].split()

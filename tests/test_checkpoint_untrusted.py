@@ -445,7 +445,7 @@ ALWAYS = ("shorter", "longer", "flat", "float32", "to_int", "to_float", "scalar"
 RANGE = {"pop_r": ("reverse", "negative"), "pop_R": ("negative",), "pop_u": ("huge", "negative"),
          "pop_cos_phi": ("huge",), "pop_sin_phi": ("huge",), "ev_ints": ("negative", "huge"),
          "pos_i": ("negative", "huge"), "energy_coarsenings": ("negative",), "energy_transitions": ("negative",)}
-NAN_MEANS_UNSET = {"pos_prev", "state_theta_birth"}  # NaN is a legal value there ("no previous point", "not born")
+NAN_MEANS_UNSET = {"pos_prev", "pos_older", "state_theta_birth"}  # NaN is a legal value there ("no previous point", "not born")
 
 
 def invalid_forgeries(arrays):
