@@ -65,7 +65,8 @@ from pathlib import Path
 
 import numpy as np
 
-FORMAT = 3  # 3: mdr springs stored (slot, component, spring), one contiguous row per component
+# 3: mdr springs stored (slot, component, spring), one contiguous row per component; predictor points pos_older
+FORMAT = 3
 SUFFIX = ".npz"
 MAX_MEMBERS = 100_000  # more arrays than any run writes (snapshots add a handful each)
 _DTYPE_KINDS = "biufU"  # bool, integers, floats, the unicode meta record; never object or structured
