@@ -1,4 +1,5 @@
-"""Helpers for tests and studies: damaged and forged checkpoint files, and the comparison of two runs.
+"""Helpers for tests and studies: damaged and forged checkpoint files, the comparison of two runs,
+and runs on one numba thread.
 
 Used by ``tests/test_checkpoint_untrusted.py`` and the stability study
 (:mod:`asperity_sim.stability`, ``studies/stability.py``) to make the hostile checkpoints a
@@ -9,10 +10,12 @@ simulator imports this module.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import zipfile
 
+import numba
 import numpy as np
 
 VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}  # attributes that differ between two runs of the same bits
@@ -30,6 +33,17 @@ def same_run(a, b) -> bool:
                                                                 equal_nan=a[name].dtype.kind == "f"):
             return False
     return all(np.array_equal(np.asarray(a.attrs[k]), np.asarray(b.attrs[k])) for k in set(a.attrs) - VOLATILE)
+
+
+@contextlib.contextmanager
+def single_thread():
+    """Run numba kernels on one thread inside the block (pure speed: no barrier waits on a busy machine)."""
+    old = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
 
 
 def members(data: bytes):

@@ -262,6 +262,7 @@ KILLED_WRITER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # a writer killed in a fresh Python process
 def test_temporaries_of_a_killed_write_are_removed_by_the_next_save(tmp_path):
     target = tmp_path / "run.npz"
     ckpt.save(target, meta={"version": "x"}, arrays={"a": np.ones(3)})

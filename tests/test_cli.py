@@ -254,6 +254,7 @@ def test_debug_shows_the_traceback(tmp_path):
         cli.main(["run", str(tmp_path / "absent.toml"), "--debug"])
 
 
+@pytest.mark.slow  # a fresh Python process that imports the package
 def test_console_entry_point_in_a_subprocess(tmp_path):
     scene = tmp_path / "broken.toml"
     scene.write_text(SMALL.replace("n = 400", "n = -400"))

@@ -417,6 +417,7 @@ ISSUE_SET = R1.replace(alpha=7.111448793670446, beta=6.668331449616249e-06, R_si
 ISSUE_DELTA = np.array([9.79145126e-05, 1.32694730e-05, 7.75287189e-05])
 
 
+@pytest.mark.slow  # the "fine, refine = 1.5" quadrature takes 2-5 s per point
 @pytest.mark.parametrize("params", [ISSUE_SET, ISSUE_SET.replace(c=0.0, d=0.0),
                                     R1.replace(b=0.5, c=0.1, d=-0.05, e=0.3, r_o=2 * um, mu=0.3)])
 def test_default_meets_1e7_where_the_trapezoid_rule_in_phi_did_not(params):
@@ -426,6 +427,7 @@ def test_default_meets_1e7_where_the_trapezoid_rule_in_phi_did_not(params):
     assert rel_err(ref.stress(params, delta, symmetry=False), finer) < 1e-7
 
 
+@pytest.mark.slow  # the "ultra" quadrature takes ~5 s
 def test_anisotropic_error_falls_fast_under_refinement():
     """Pieces cut at the kinks: the error falls by orders of magnitude per refinement (was ~n^-6)."""
     best = ref.stress(ISSUE_SET, ISSUE_DELTA, level="ultra")

@@ -39,6 +39,7 @@ def test_scenario_runs_and_writes_its_outputs(name, tmp_path, run_script):
             ds.close()
 
 
+@pytest.mark.slow  # a fresh Python process that imports the package
 def test_scenario_rejects_bad_options(run_script):
     done = run_script("scenarios/three_step.py", "--n", "0")
     assert done.returncode == 2  # argparse's usage error

@@ -75,9 +75,10 @@ def test_bad_sample_size_names_the_range(n):
 
 def test_net_directions_visit_the_scrambled_points_in_order_of_their_first_coordinate():
     """net_point at cell c, then net_next, give the points of sobol_points (same seed) sorted by
-    their first coordinate, which falls in cell c; a block may start anywhere."""
+    their first coordinate, which falls in cell c; a block may start anywhere.  The walk calls the
+    compiled net_point and net_next from Python (a jitted walk here would be compiled on every run,
+    ~2.5 s, while theirs are cached with their module)."""
 
-    @numba.njit
     def walk(W, shift, s, start, count):
         out = np.empty((count, sobol.DIM), dtype=np.int64)
         x = np.empty(sobol.DIM, dtype=np.int64)

@@ -61,6 +61,7 @@ def test_ensemble_mean_and_standard_error(serial):
                                rtol=1e-12, atol=1e-6)
 
 
+@pytest.mark.slow  # starts a cluster of 2 worker processes
 def test_local_cluster_of_2_workers_matches_serial_bit_for_bit(serial):
     pytest.importorskip("dask.distributed")
     on_dask = run_sweep(_small_sweep(), scheduler="local", workers=2)
