@@ -5,7 +5,7 @@ Public API: parameters (``InterfaceParams``, ``presets``), a sampled ``Populatio
 ``reference``.
 """
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 import os as _os
 
