@@ -459,9 +459,7 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
     inp = np.empty(N_IN * BLOCK)
     kept = np.empty(BLOCK, dtype=np.int64)
     at = np.empty(BLOCK, dtype=np.int64)
-    F0 = F1 = F2 = P00 = P11 = P22 = P01 = P02 = P12 = 0.0
-    T0 = T1 = T2 = T3 = T4 = T5 = T6 = T7 = T8 = 0.0
-    n_c = n_s = n_p = th_sum = 0.0
+    acc = np.zeros(N_ACC)
     for b0 in range(lo, hi, BLOCK):
         b1 = min(hi, b0 + BLOCK)
         if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
@@ -489,36 +487,8 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
             for i in range(m):
                 values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
                               inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
-        for i in range(m):
-            g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
-            F0 += g0
-            F1 += g1
-            F2 += g2
-            P00 += g0 * g0
-            P11 += g1 * g1
-            P22 += g2 * g2
-            P01 += g0 * g1
-            P02 += g0 * g2
-            P12 += g1 * g2
-            T0 += vals[V_T * BLOCK + i]
-            T1 += vals[(V_T + 1) * BLOCK + i]
-            T2 += vals[(V_T + 2) * BLOCK + i]
-            T3 += vals[(V_T + 3) * BLOCK + i]
-            T4 += vals[(V_T + 4) * BLOCK + i]
-            T5 += vals[(V_T + 5) * BLOCK + i]
-            T6 += vals[(V_T + 6) * BLOCK + i]
-            T7 += vals[(V_T + 7) * BLOCK + i]
-            T8 += vals[(V_T + 8) * BLOCK + i]
-            n_c += vals[V_NC * BLOCK + i]
-            n_s += vals[V_NS * BLOCK + i]
-            n_p += vals[V_NP * BLOCK + i]
-            th_sum += vals[V_TH * BLOCK + i]
-    row = partial[ic]
-    row[I_F], row[I_F + 1], row[I_F + 2] = F0, F1, F2
-    row[I_FF], row[I_FF + 1], row[I_FF + 2], row[I_FF + 3], row[I_FF + 4], row[I_FF + 5] = P00, P11, P22, P01, P02, P12
-    row[I_T], row[I_T + 1], row[I_T + 2], row[I_T + 3], row[I_T + 4] = T0, T1, T2, T3, T4
-    row[I_T + 5], row[I_T + 6], row[I_T + 7], row[I_T + 8] = T5, T6, T7, T8
-    row[I_NC], row[I_NS], row[I_NP], row[I_TH] = n_c, n_s, n_p, th_sum
+        add_values(vals, m, acc)
+    partial[ic, :] = acc
 
 
 def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, tan_max,
