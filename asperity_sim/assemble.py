@@ -341,14 +341,9 @@ def slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e):
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def slot_values(vals, i, geo, out):
-    """Column i of ``vals`` (as :func:`values_follow`) from the law's values ``out`` of a committed contact."""
-    touch = geo[G_DN, i] > 0.0
-    o = (out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i], out[6, i], out[7, i], out[8, i],
-         out[9, i], out[10, i], out[11, i], out[12, i])
-    g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(
-        geo[G_CT, i], geo[G_ST, i], geo[G_CP, i], geo[G_SP, i], o, geo[G_DS, i], geo[G_RHO, i], geo[G_TH1, i])
-    code = out[12, i]
+def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8):
+    """Column i of ``vals``: global force, tangent, counts and angle of one asperity; zeros out of contact
+    (selects, so that the loop stays vectorised)."""
     vals[V_G * BLOCK + i] = g0 if touch else 0.0
     vals[(V_G + 1) * BLOCK + i] = g1 if touch else 0.0
     vals[(V_G + 2) * BLOCK + i] = g2 if touch else 0.0
@@ -364,7 +359,19 @@ def slot_values(vals, i, geo, out):
     vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
     vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
     vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
-    vals[V_TH * BLOCK + i] = geo[G_TH, i] if touch else 0.0
+    vals[V_TH * BLOCK + i] = th if touch else 0.0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def slot_values(vals, i, geo, out):
+    """Column i of ``vals`` (as :func:`values_follow`) from the law's values ``out`` of a committed contact."""
+    touch = geo[G_DN, i] > 0.0
+    o = (out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i], out[6, i], out[7, i], out[8, i],
+         out[9, i], out[10, i], out[11, i], out[12, i])
+    g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(
+        geo[G_CT, i], geo[G_ST, i], geo[G_CP, i], geo[G_SP, i], o, geo[G_DS, i], geo[G_RHO, i], geo[G_TH1, i])
+    code = out[12, i]
+    store_values(vals, i, touch, code, geo[G_TH, i], g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
 
 
 @numba.njit(cache=True, inline="always")
@@ -426,23 +433,7 @@ def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts
     out = local(dn if touch else 1.0, ds, dt, R_j, consts)
     code = out[12]
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds, dn, th1)
-    # out of contact: zeros (selects, so that the loop stays vectorised)
-    vals[V_G * BLOCK + i] = g0 if touch else 0.0
-    vals[(V_G + 1) * BLOCK + i] = g1 if touch else 0.0
-    vals[(V_G + 2) * BLOCK + i] = g2 if touch else 0.0
-    vals[V_T * BLOCK + i] = T0 if touch else 0.0
-    vals[(V_T + 1) * BLOCK + i] = T1 if touch else 0.0
-    vals[(V_T + 2) * BLOCK + i] = T2 if touch else 0.0
-    vals[(V_T + 3) * BLOCK + i] = T3 if touch else 0.0
-    vals[(V_T + 4) * BLOCK + i] = T4 if touch else 0.0
-    vals[(V_T + 5) * BLOCK + i] = T5 if touch else 0.0
-    vals[(V_T + 6) * BLOCK + i] = T6 if touch else 0.0
-    vals[(V_T + 7) * BLOCK + i] = T7 if touch else 0.0
-    vals[(V_T + 8) * BLOCK + i] = T8 if touch else 0.0
-    vals[V_NC * BLOCK + i] = 1.0 if touch else 0.0
-    vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
-    vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
-    vals[V_TH * BLOCK + i] = th if touch else 0.0
+    store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
 
 
 def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial):

@@ -51,7 +51,18 @@ def _bar(total, desc, unit, stream):
                 leave=True, **width)
 
 
-class RunProgress:
+class _Closing:
+    """A bar to use in a ``with`` block: closed at its end."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+class RunProgress(_Closing):
     """A tqdm bar for one run, as the ``progress`` callback of :func:`asperity_sim.simulate`.
 
     path : the run's :class:`asperity_sim.paths.LoadPath` (its stages' increments and names)
@@ -84,15 +95,9 @@ class RunProgress:
     def close(self):
         self.bar.close()
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False
 
 
-class CountProgress:
+class CountProgress(_Closing):
     """A tqdm bar counting finished runs, as the ``progress(done, total)`` callback of a sweep.
 
     kind : the label (``"sweep"``, ``"envelope"``, ``"cyclic"``)
@@ -111,9 +116,3 @@ class CountProgress:
         if self.bar is not None:
             self.bar.close()
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False
