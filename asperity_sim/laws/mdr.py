@@ -63,8 +63,8 @@ def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
     return math.sqrt(R * (dn if scaled else fixed)) / k, scaled
 
 
-FAST = {"reassoc"}
-LANES = 8  # the sums over springs may be reordered, so that the loops vectorise
+FAST = {"reassoc"}  # the sums over springs may be reordered, so that the loops vectorise
+LANES = 8  # doubles per vector register (AVX-512): spring loops are padded to whole vectors
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
