@@ -63,7 +63,7 @@ def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
     return math.sqrt(R * (dn if scaled else fixed)) / k, scaled
 
 
-FAST = {"reassoc"}  # the sums over springs may be reordered, so that the loops vectorise
+FAST = {"reassoc", "contract"}  # sums over springs may be reordered (the loops vectorise), products fused
 LANES = 8  # doubles per vector register (AVX-512): spring loops are padded to whole vectors
 
 
@@ -107,23 +107,40 @@ def spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt, lm_r, dlim, can_stic
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def continuing_spring(ws, wt, limit, dlim, can_stick):
-    """:func:`spring_step` of a spring that continues from its vector (a = 1, da = 0), trial vector (ws, wt).
+def continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1, can_stick):
+    """Sums of the springs 0 <= i < n_cont that continue from their committed vectors (u_i^c > 0) in a trial.
 
-    Returns (stick, F_s, F_t, J10, J11, J12, J20, J22); the same stick/slip decision as spring_step.
+    The physics of :func:`spring_step` with a = 1, da = 0, arranged for few operations per
+    spring: with p = limit / |w|³ and g = dlim / |w| of a slipping spring, its Jacobian is
+    ratio (I - e e^T) = p (wt², -ws wt; -ws wt, ws²) and dlim e = g w (no cancellation: 1 - es²
+    is written et²), and a sticking spring adds the identity.  The loop runs to n_pad (whole
+    vectors); springs n_cont.. add nothing.  Returns (F_s, F_t, J10, J11, J12, J20, J22, n_stick)
+    per unit q.
     """
-    m2 = ws * ws + wt * wt
-    stick = can_stick & (m2 <= limit * limit)
-    mm = fsqrt(m2)
-    inv_m = 1.0 / mm if mm > 0.0 else 0.0
-    ratio = limit * inv_m
-    es, et = ws * inv_m, wt * inv_m
-    return (stick, ws if stick else ratio * ws, wt if stick else ratio * wt,
-            0.0 if stick else dlim * es,
-            1.0 if stick else ratio * (1.0 - es * es),
-            0.0 if stick else -ratio * es * et,
-            0.0 if stick else dlim * et,
-            1.0 if stick else ratio * (1.0 - et * et))
+    Fs = Ft = A = B = C = Gs = Gt = n_stick = 0.0
+    for i in range(n_pad):
+        u = dn - spring_x2(c, i)
+        ws, wt = float(w[0, i]) + dds, float(w[1, i]) + ddt
+        limit = lm_r * u
+        ws2, wt2 = ws * ws, wt * wt
+        m2 = ws2 + wt2
+        stick = can_stick & (m2 <= limit * limit)
+        mm = fsqrt(m2)
+        inv_m = 1.0 / mm if mm > 0.0 else 0.0
+        inc = i < n_cont
+        slip = inc & ~stick
+        r = (1.0 if stick else limit * inv_m) if inc else 0.0
+        p = r * inv_m * inv_m if slip else 0.0
+        g = (dlim0 + u * dlim1) * inv_m if slip else 0.0
+        Fs += r * ws
+        Ft += r * wt
+        n_stick += 1.0 if inc & stick else 0.0
+        A += p * wt2
+        B += p * (ws * wt)
+        C += p * ws2
+        Gs += g * ws
+        Gt += g * wt
+    return Fs, Ft, Gs, n_stick + A, -B, Gt, n_stick + C, n_stick
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -260,26 +277,14 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     can_stick = lm != 0.0
     gap = dn - dn_c
     n_store = w.shape[1]
-    Fs = Ft = J10 = J11 = J12 = J20 = J22 = 0.0
-    n_stick = 0
     dlim0, dlim1 = lm * rho, lm * drho
     n_held = min(n_in, n_store)
     # springs in contact at the committed overlap (u_c > 0) continue from their vectors: the lean loop
     n_cont = min(entering_tail(0, dn_c, dn_c, c)[0], n_held)
-    for i in range(min((n_cont + LANES - 1) // LANES * LANES, n_store)):  # whole vectors: no scalar remainder
-        x2 = spring_x2(c, i)
-        u = dn - x2
-        ws, wt = float(w[0, i]) + dds, float(w[1, i]) + ddt
-        stick, fs, ft, j10, j11, j12, j20, j22 = continuing_spring(ws, wt, lm_r * u, dlim0 + u * dlim1, can_stick)
-        inc = i < n_cont  # padding springs add nothing
-        Fs += fs if inc else 0.0
-        Ft += ft if inc else 0.0
-        J10 += j10 if inc else 0.0
-        J11 += j11 if inc else 0.0
-        J12 += j12 if inc else 0.0
-        J20 += j20 if inc else 0.0
-        J22 += j22 if inc else 0.0
-        n_stick += 1 if stick & inc else 0
+    n_pad = min((n_cont + LANES - 1) // LANES * LANES, n_store)  # whole vectors: no scalar remainder
+    Fs, Ft, J10, J11, J12, J20, J22, stuck = continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1,
+                                                             can_stick)
+    n_stick = int(stuck)
     for i in range(n_cont, n_held):  # entering this increment, or kept memory across the edge (coarsening)
         x2 = spring_x2(c, i)
         u, u_c = dn - x2, dn_c - x2
