@@ -144,20 +144,57 @@ def continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1, can_
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
+def continuing_commit(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, can_stick):
+    """:func:`continuing_trial` of a commit: the new vectors of springs 0 <= i < n_cont written over ``w``.
+
+    Energies per unit q as :func:`add_spring` with a = 1.  The loop runs to n_pad (whole
+    vectors) and writes springs n_cont.. back unchanged.  Returns (n_stick, work, dissipation,
+    sum |w|² of the new vectors).
+    """
+    n_stick = work = dissipation = stored = 0.0
+    for i in range(n_pad):
+        u = dn - spring_x2(c, i)
+        wcs, wct = float(w[0, i]), float(w[1, i])
+        ws, wt = wcs + dds, wct + ddt
+        limit = lm_r * u
+        m2 = ws * ws + wt * wt
+        stick = can_stick & (m2 <= limit * limit)
+        mm = fsqrt(m2)
+        ratio = limit * (1.0 / mm) if mm > 0.0 else 0.0
+        ns, nt = (ws, wt) if stick else (ratio * ws, ratio * wt)
+        inc = i < n_cont
+        w[0, i] = ns if inc else wcs
+        w[1, i] = nt if inc else wct
+        n2 = ns * ns + nt * nt
+        de = 0.5 * (n2 - (wcs * wcs + wct * wct))
+        # a sticking spring is linear: its work is its change of energy; a slipping one slips by ws - ns
+        wk = de if stick else ns * dds + nt * ddt
+        dd = 0.0 if stick else ns * (ws - ns) + nt * (wt - nt) + 0.5 * ((ns - wcs) ** 2 + (nt - wct) ** 2)
+        n_stick += 1.0 if inc & stick else 0.0
+        work += wk if inc else 0.0
+        dissipation += dd if inc else 0.0
+        stored += n2 if inc else 0.0
+    return n_stick, work, dissipation, stored
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
-    """(f_n, k_n, n_in, rho, drho): Hertz force and stiffness, springs in contact, and the Coulomb scale.
+    """(f_n, k_n, n_in, rho, drho, sqrt R): Hertz force and stiffness, springs in contact, the Coulomb scale.
 
     The Coulomb limit of spring i is lam mu rho u_i, with rho = f_n / (2 E* h sum u_i) the ratio
     of the Hertz force to the springs' own normal force (1 up to the discretisation), so that a
     contact in full slip carries exactly mu f_n, as the paper law; drho = d rho / d dn (zero when
-    h follows the overlap: both forces then grow as dn^(3/2)).
+    h follows the overlap: both forces then grow as dn^(3/2)).  Hertz as :func:`hertz`, with the
+    roots shared: sqrt(dn / c) = sqrt(dn) sqrt(R) / h.
     """
-    f_n, k_n = hertz(dn, R, E_star)
-    n_in, sum_u, _ = entering_tail(0, dn, dn_c, c)
+    sR, sdn = fsqrt(R), fsqrt(dn)
+    C = (4.0 / 3.0) * E_star * sR
+    f_n, k_n = C * dn * sdn, 1.5 * C * sdn
+    n_in, sum_u, _ = tail_sums(0, springs_below(dn, c, sdn * sR / h), dn, dn_c, c)
     if sum_u <= 0.0:
-        return f_n, k_n, n_in, 1.0, 0.0
+        return f_n, k_n, n_in, 1.0, 0.0, sR
     rho = f_n / (2.0 * E_star * h * sum_u)
-    return f_n, k_n, n_in, rho, 0.0 if scaled else rho * (k_n / f_n - n_in / sum_u)
+    return f_n, k_n, n_in, rho, 0.0 if scaled else rho * (1.5 / dn - n_in / sum_u), sR
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -230,7 +267,7 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     c = h * h / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    f_n, k_n, n_in, rho, drho = coulomb_scale(dn, dn_c, R, E_star, h, c, scaled)
+    f_n, k_n, n_in, rho, drho, _ = coulomb_scale(dn, dn_c, R, E_star, h, c, scaled)
     lm_r = lm * rho
     can_stick = lm != 0.0
     gap = dn - dn_c
@@ -239,8 +276,9 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     # two branch-free loops that LLVM vectorises: stored springs, then springs without memory
     # (a stored spring with u_c <= 0 has memory only after coarsening, merged across the edge: it keeps it)
     # released first: the loops may write over the stored springs beyond those in contact
-    work, stored_change, dissipation = release(w, n_in, dn, dn_c, c, dds, ddt, q) if write and not fresh else (
-        0.0, 0.0, 0.0)
+    work = stored_change = dissipation = 0.0
+    if write and not fresh:
+        work, stored_change, dissipation = release(w, n_in, w.shape[1], dn, dn_c, c, dds, ddt, q)
     n_pad = min((n_mem + LANES - 1) // LANES * LANES, w.shape[1], w_out.shape[1] if write else w.shape[1])
     Fs, Ft, J10, J11, J12, J20, J22, n_stick, wk, de, dd = spring_range(
         0, n_mem, max(n_pad, n_mem), w, True, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r,
@@ -267,12 +305,12 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     The stored springs in contact are visited once, in storage order (w: (2, stored), one
     contiguous row per component, so the loop vectorises); those beyond the stored ones enter
     in this increment and are summed in closed form.
-    Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip).
+    Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n) (Hertz: :func:`coulomb_scale`).
     """
     c = h * h / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    f_n, k_n, n_in, rho, drho = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
+    f_n, k_n, n_in, rho, drho, sR = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
     lm_r = lm * rho
     can_stick = lm != 0.0
     gap = dn - dn_c
@@ -280,7 +318,7 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     dlim0, dlim1 = lm * rho, lm * drho
     n_held = min(n_in, n_store)
     # springs in contact at the committed overlap (u_c > 0) continue from their vectors: the lean loop
-    n_cont = min(entering_tail(0, dn_c, dn_c, c)[0], n_held)
+    n_cont = min(springs_below(dn_c, c, fsqrt(dn_c) * sR / h), n_held)
     n_pad = min((n_cont + LANES - 1) // LANES * LANES, n_store)  # whole vectors: no scalar remainder
     Fs, Ft, J10, J11, J12, J20, J22, stuck = continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1,
                                                              can_stick)
@@ -326,23 +364,26 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
             J22 += tail_u / gap * P11
             Fs += lm_r * tail_u * es
             Ft += lm_r * tail_u * et
-    return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J12, q * J22, n_in, n_slip
+    return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J12, q * J22, n_in, n_slip, f_n, k_n
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def entering_tail(i0, dn, dn_c, c):
-    """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
+def springs_below(dn, c, root):
+    """N: springs i < N have u_i = dn - c (i + 1/2)² > 0, from root ~ sqrt(dn / c) (0 if not positive).
 
-    Springs beyond the stored ones enter contact in this increment: each takes the same part
-    u_i / (dn - dn_c) of it and they all stick or all slip together, so their sums need only
-    these three numbers (the cost of a trial does not grow with the overlap).  The count uses
-    :func:`spring_x2`, so it is the number of springs the loops find in contact.
+    The rounded root is corrected by one either way with the test the loops make
+    (:func:`spring_x2`), so the count is exactly the number of springs they find in contact;
+    branch-free.
     """
-    N = int(fsqrt(dn / c) + 0.5)  # springs i < N have (i + 1/2)² c < dn
-    while dn - spring_x2(c, N) > 0.0:
-        N += 1
-    while N > i0 and dn - spring_x2(c, N - 1) <= 0.0:
-        N -= 1
+    N = int(root + 0.5) if root > 0.0 else 0
+    N += 1 if dn - spring_x2(c, N) > 0.0 else 0
+    N -= 1 if (N > 0) & (dn - spring_x2(c, N - 1) <= 0.0) else 0
+    return N
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def tail_sums(i0, N, dn, dn_c, c):
+    """(m, sum u_i, sum -u_i^c) over the springs i0 <= i < N, u_i = dn - c (i + 1/2)², in closed form."""
     m = N - i0
     if m <= 0:
         return 0, 0.0, 0.0
@@ -351,15 +392,27 @@ def entering_tail(i0, dn, dn_c, c):
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def release(w, start, dn, dn_c, c, dds, ddt, q):
-    """Work, change of stored energy and dissipation of the stored springs start.. leaving contact.
+def entering_tail(i0, dn, dn_c, c):
+    """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
+
+    Springs beyond the stored ones enter contact in this increment: each takes the same part
+    u_i / (dn - dn_c) of it and they all stick or all slip together, so their sums need only
+    these three numbers (the cost of a trial does not grow with the overlap).  The count is
+    :func:`springs_below`, the number of springs the loops find in contact.
+    """
+    return tail_sums(i0, springs_below(dn, c, fsqrt(dn / c)), dn, dn_c, c)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def release(w, start, end, dn, dn_c, c, dds, ddt, q):
+    """Work, change of stored energy and dissipation of the stored springs start <= i < end leaving contact.
 
     A spring in contact for the first fraction f = u^c/(u^c - u) of the increment follows it
     elastically to w* = w^c + f dδ; as its limit vanishes at the exit it slides to zero,
     dissipating ½ q |w*|².  Under proportional unloading w* = 0.  (Springs without memory add 0.)
     """
     work = stored_change = dissipation = 0.0
-    for jj in range(start, w.shape[1]):
+    for jj in range(start, end):
         wcs, wct = float(w[0, jj]), float(w[1, jj])
         x2 = spring_x2(c, jj)
         u_c, u = dn_c - x2, dn - x2
@@ -394,12 +447,12 @@ def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     w_all, h_all = arrays
     row = 0 if fresh else sl
     h, scaled = spacing(fresh, dn, dn_ref, R, k, dn_floor, h_all[row])
-    f_n, k_n = hertz(dn, R, E_star)
     if fresh:  # a call, not inlined: the hot loop over committed contacts stays small
+        f_n, k_n = hertz(dn, R, E_star)
         Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip = fresh_springs(
             dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[row], h, scaled)
     else:
-        Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip = committed_springs(
+        Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n = committed_springs(
             dn, dds, ddt, dn_c, R, E_star, lam, mu, w_all[sl], h)
     return (f_n, Fs, Ft, k_n, 0.0, 0.0, J10, J11, J12, J20, J21, J22, float(state_code(n_springs, n_slip)))
 
@@ -420,6 +473,46 @@ def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled
     """
     out = springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w, True)
     return out[8], out[9], out[10], out[11], out[12]
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
+    """:func:`springs` of a commit of a committed contact (dn > 0) whose springs fit, in place.
+
+    The springs leaving contact are released, those continuing go through the lean loop, the
+    few entering (or holding memory across the edge after coarsening) through the general
+    step; springs beyond those in contact are zeroed.  Returns (fits, n_springs, n_slip, work,
+    dissipation, sum |w|² of the new vectors, Hertz energy before, Hertz energy after); nothing is
+    written when the springs in contact do not fit in the store (fits False).
+    """
+    c = h * h / R
+    q = 2.0 * E_star * h / lam
+    lm = lam * mu
+    f_n, k_n, n_in, rho, drho, sR = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
+    sdc = fsqrt(dn_c)
+    e_old = (8.0 / 15.0) * E_star * sR * dn_c * dn_c * sdc  # hertz_energy
+    if n_in > w.shape[1]:
+        return False, n_in, 0, 0.0, 0.0, 0.0, e_old, 0.0
+    lm_r = lm * rho
+    can_stick = lm != 0.0
+    n_c = springs_below(dn_c, c, sdc * sR / h)
+    n_cont = min(n_c, n_in)
+    # a commit zeroes the springs beyond those in contact (a coarsening may leave one more, across the
+    # edge), so only springs n_in .. n_c + 1 can hold a vector to release
+    n_held = min(w.shape[1], max(n_in, n_c + 1))
+    work, _, dissipation = release(w, n_in, n_held, dn, dn_c, c, dds, ddt, q)
+    n_pad = min((n_cont + LANES - 1) // LANES * LANES, w.shape[1])
+    st, wk, dd, stored = continuing_commit(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, can_stick)
+    _, _, _, _, _, _, _, st2, wk2, _, dd2 = spring_range(
+        n_cont, n_in, n_in, w, True, c, dn, dn_c, 1.0 / dn, False, dn - dn_c, dds, ddt, lm, rho, drho, lm_r, can_stick,
+        q, w, True)
+    for i in range(n_cont, n_in):
+        stored += float(w[0, i]) ** 2 + float(w[1, i]) ** 2
+    for i in range(n_in, n_held):
+        w[0, i] = 0.0
+        w[1, i] = 0.0
+    return (True, n_in, n_in - int(st + st2), work + q * wk + wk2, dissipation + q * dd + dd2, stored, e_old,
+            0.4 * f_n * dn)
 
 
 @numba.njit(cache=True)
@@ -459,10 +552,16 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     w = w_all[sl]
     n_store = w.shape[1]
     q_unit = 2.0 * E_star / lam
+    if dn > 0.0 and not fresh:  # the common case: springs that fit, written over the committed ones
+        h = h_all[sl]
+        fits, n_springs, n_slip, work, diss, stored, e_old, e_new = committed_commit(dn, dds, ddt, dn_c, R, E_star,
+                                                                                     lam, mu, w, h)
+        if fits:
+            return state_code(n_springs, n_slip), work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss, 0
     e_old = 0.0 if fresh else hertz_energy(dn_c, R, E_star)
     if dn <= 0.0:
         h = h_all[sl]
-        wk, _, dd = release(w, 0, dn, dn_c, h * h / R, dds, ddt, q_unit * h)
+        wk, _, dd = release(w, 0, n_store, dn, dn_c, h * h / R, dds, ddt, q_unit * h)
         w[:, :] = 0.0
         h_all[sl] = 0.0
         return 0, wk - e_old, 0.0, dd, 0
@@ -470,7 +569,7 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     n_need = entering_tail(0, dn, dn_c, h * h / R)[0]
     coarsenings = 0
     stored = 0.0
-    if n_need <= n_store:  # the new springs fit: written over the committed ones
+    if n_need <= n_store:  # a fresh contact that fits
         n_springs, n_slip, work, _, diss = commit_springs_in_place(
             dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh)
         code = state_code(n_springs, n_slip)
