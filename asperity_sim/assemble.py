@@ -636,11 +636,13 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
 
 
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
-               partial):
+               partial, spans):
     """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
 
     They take their follow angle (SPEC §3) and start from no history; committed contacts are
     skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
+    ``spans`` (chunks, 2): per chunk, the asperities [first, last] + 1 found touching ((0, 0) if
+    none), so that a commit at this displacement looks only there (:func:`find_fresh`).
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
@@ -650,6 +652,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     for kk in numba.prange(n_chunks):
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_ACC)
+        first, last = n_active, -1
         for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
             if flag[j]:
                 continue
@@ -664,6 +667,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
             if dn <= 0.0:
                 continue
+            first, last = min(first, j), j
             dn_c = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
             dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
             rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
@@ -671,6 +675,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
                        th1)
             acc[I_TH] += th
         partial[ic, :] = acc
+        spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
 
 
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
@@ -735,14 +740,23 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
 
 
 @numba.njit(cache=True, parallel=True)
-def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts):
-    """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk."""
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans):
+    """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk.
+
+    ``spans`` (chunks, 2), if not empty: where the trial's :func:`fresh_pass` at this same
+    displacement and committed state found them, per chunk; only those ranges are tested (the
+    same test, so the same asperities), else every asperity below n_active.
+    """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
+    known = spans.shape[0] > 0
     for ic in numba.prange(n_chunks):
         c = 0
-        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
+        lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
+        if known:
+            lo, hi = spans[ic, 0], spans[ic, 1]
+        for j in range(lo, hi):
             if flag[j]:
                 continue
             cp, sp = cos_phi[j], sin_phi[j]
@@ -941,10 +955,23 @@ def check_choice(name, value, valid):
 
 
 class Workspace:
-    """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing)."""
+    """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
+
+    A history law's trial also leaves here where its fresh contacts are (``spans``) and the
+    displacement and committed state it was made at (``fresh_key``), for a commit there.
+    """
 
     def __init__(self, n):
-        self.partial = np.zeros(((n + CHUNK - 1) // CHUNK, N_ACC))
+        n_chunks = (n + CHUNK - 1) // CHUNK
+        self.partial = np.zeros((n_chunks, N_ACC))
+        self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
+        self.fresh_key = None
+
+    def fresh_spans(self, delta, state):
+        """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
+        if self.fresh_key == (np.asarray(delta, dtype=float).tobytes(), id(state), state.serial):
+            return self.spans
+        return _EMPTY_SPANS
 
     def rows(self, m):
         """At least m rows of partial sums (grown when a history law has more slot chunks)."""
@@ -954,6 +981,7 @@ class Workspace:
 
 
 _EMPTY = np.empty(0)
+_EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
 
 
 def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None, state=None) -> Evaluation:
@@ -1017,8 +1045,10 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
         n_pop = (n_active + CHUNK - 1) // CHUNK
         n_slot = (state.n_slots + CHUNK - 1) // CHUNK
         partial = workspace.rows(n_pop + n_slot)
+        workspace.fresh_key = None
         kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
-                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial)
+                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans)
+        workspace.fresh_key = (d.tobytes(), id(state), state.serial)
         if n_slot:
             kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
                               state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:])

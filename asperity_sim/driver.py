@@ -435,7 +435,7 @@ class _Run:
                     pos.advance(s, self.delta, slope)
                     ev = self.ev = result.evaluation
                     self.delta = delta = ev.delta.copy()
-                    c = self.state.commit(delta, ev.n_active)
+                    c = self.state.commit(delta, ev.n_active, self.ws)
                     if c is not None:
                         e = self.energy
                         self.energy = {"external_work": e["external_work"] + c.work, "elastic_energy": c.stored,

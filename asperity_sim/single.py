@@ -70,7 +70,7 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dty
         ev = evaluate(pop, d[i], law=lw, workspace=ws, state=state)
         force[i] = ev.stress
         tangent[i] = ev.tangent
-        c = state.commit(d[i], ev.n_active)
+        c = state.commit(d[i], ev.n_active, ws)
         if history is not None:
             w_sum += c.work
             d_sum += c.dissipation

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import laws
-from .assemble import (C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, _EMPTY, assign_slots, birth_angles,
-                       bounds, find_fresh, kernels)
+from .assemble import (C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, _EMPTY, _EMPTY_SPANS, assign_slots,
+                       birth_angles, bounds, find_fresh, kernels)
 
 SPRING_DTYPES = ("float64", "float32")
 K_MAX = 4096
@@ -68,6 +68,7 @@ class ContactState:
         self.consts = tuple(float(c) for c in self.law.constants(pop.params, self.k))
         self.theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
         self.delta_c = np.zeros(3)
+        self.serial = 0  # commits and restores so far: a trial's leftovers are valid for this state only
         self.reference = np.zeros(3)  # where fresh contacts are expected to go: their springs fit it
         self.n_slots = 0
         if self.law.history is not None:
@@ -105,11 +106,14 @@ class ContactState:
 
     # -- commit -----------------------------------------------------------------------------------
 
-    def commit(self, delta, n_active=None) -> CommitResult | None:
+    def commit(self, delta, n_active=None, workspace=None) -> CommitResult | None:
         """Make the state at the converged displacement ``delta`` [m] the committed one.
 
         Returns the energies of the increment for a history law, else None.  ``n_active``
         (asperities below the height bound, from the trial) is recomputed when not given.
+        ``workspace``: the :class:`~asperity_sim.assemble.Workspace` of the trials; if the last
+        one was made at ``delta``, the search for contacts born in this increment looks only
+        where it found them.
         """
         pop, p = self.pop, self.pop.params
         delta = np.asarray(delta, dtype=float)
@@ -117,7 +121,9 @@ class ContactState:
         result = None
         if self.has_history:
             n_active_h, tan_max = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, _EMPTY)
-            result = self._commit_history(delta, n_active_h, tan_max, tb)
+            spans = _EMPTY_SPANS if workspace is None else workspace.fresh_spans(delta, self)
+            result = self._commit_history(delta, n_active_h, tan_max, tb, spans)
+            self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:
                 n_active = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, tb)[0]
@@ -126,7 +132,7 @@ class ContactState:
         self.delta_c = delta.copy()
         return result
 
-    def _commit_history(self, delta, n_active, tan_max, tb) -> CommitResult:
+    def _commit_history(self, delta, n_active, tan_max, tb, spans) -> CommitResult:
         pop, p = self.pop, self.pop.params
         kern = kernels(self.law)
         n_slot_chunks = (self.n_slots + CHUNK - 1) // CHUNK
@@ -143,7 +149,7 @@ class ContactState:
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
         find_fresh(self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e,
-                           tan_max, counts)
+                           tan_max, counts, spans)
         n_new = int(counts.sum())
         if n_new:
             self._reserve(self.n_slots + n_new)
@@ -239,6 +245,7 @@ class ContactState:
                 a[:m] = b
             self.n_slots = m
         self.delta_c = delta_c.copy()
+        self.serial += 1
 
 
 def _grow_in_place(a, new):

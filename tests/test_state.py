@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from asperity_sim import Population, paths, presets, reference, simulate
-from asperity_sim.assemble import evaluate
+from asperity_sim.assemble import Workspace, evaluate
 from asperity_sim.state import ContactState
 
 um = 1e-6
@@ -48,6 +48,33 @@ def test_trial_evaluation_never_changes_committed_history():
     assert before.keys() == after.keys()
     for name, a in before.items():
         assert np.array_equal(after[name], a), name
+
+
+def test_commit_after_a_trial_there_finds_the_same_fresh_contacts_as_a_full_search():
+    """A commit given the workspace of a trial at its displacement searches only where that trial found
+    fresh contacts: the committed state is the same as after a search of every asperity; a trial
+    elsewhere, or on another committed state, is not used."""
+    pop, full = loaded_history(n=20000)
+    guided = ContactState(pop, "mdr", k=16)
+    guided.restore(full.state_arrays())
+    ws = Workspace(pop.n)
+    rng = np.random.default_rng(3)
+    born = 0
+    for _ in range(12):
+        d = full.delta_c + rng.normal([0.4, 0.3, 0.2], 0.3) * um
+        evaluate(pop, d + 1e-3 * um, law="mdr", state=guided, workspace=ws)  # not where the commit goes
+        assert ws.fresh_spans(d, guided).size == 0
+        evaluate(pop, d, law="mdr", state=guided, workspace=ws)
+        assert ws.fresh_spans(d, guided).size > 0
+        before = full.n_contacts
+        a, b = full.commit(d), guided.commit(d, workspace=ws)
+        born += full.n_contacts - before
+        assert ws.fresh_spans(d, guided).size == 0  # committed since
+        assert (a.work, a.stored, a.dissipation) == (b.work, b.stored, b.dissipation)
+        assert np.array_equal(a.transitions, b.transitions)
+        for name, x in full.state_arrays().items():
+            assert np.array_equal(guided.state_arrays()[name], x), name
+    assert born > 0  # contacts were born along the way
 
 
 @pytest.mark.parametrize("trial_um", [(14.3, 3.5, 2.5), (13, 5, 3.1), (15, 6, 3), (12, 1, 6)])
