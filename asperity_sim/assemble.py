@@ -215,16 +215,26 @@ def may_touch_follow(x, shear_ph, y, scale, tan_max):
 
     ``x`` = Delta_1 - r, ``shear_ph`` = cos(phi) Delta_2 + sin(phi) Delta_3, ``y`` =
     cos(theta_m(c, R_j)) = 1 - k_e c / R_j (Eq. 9, before clipping), ``scale`` = 2 u_j / pi, so
-    theta = scale theta_m, and ``tan_max`` bounds tan theta of every asperity (:func:`cannot_touch`).
-    Above the closure (x <= 0) contact needs shear_ph > 0 and tan(theta) > -x / shear_ph.  tan
-    is convex on [0, pi/2) with tan 0 = 0, hence tan(theta) <= scale tan(theta_m): contact is
-    impossible when scale² (1 - y²) shear_ph² < x² y² (0 < y < 1; y >= 1 means theta_m = 0 and
-    y <= 0 gives no bound).  The relative margin 1e-9 keeps both tests on the safe side of round-off.
+    theta = scale theta_m in [0, pi/2], and ``tan_max`` bounds tan theta of every asperity
+    (:func:`cannot_touch`); delta_n = cos(theta) x + sin(theta) shear_ph.
+
+    - Above the closure (x <= 0) contact needs shear_ph > 0 and tan(theta) > -x / shear_ph.  tan
+      is convex on [0, pi/2) with tan 0 = 0, hence tan(theta) <= scale tan(theta_m): contact is
+      impossible when scale² (1 - y²) shear_ph² < x² y² (0 < y < 1; y >= 1 means theta_m = 0
+      and y <= 0 gives no bound).
+    - Below it (x > 0) a shear away from the asperity (shear_ph < 0) lifts it off when
+      tan(theta) >= x / -shear_ph.  acos y = 2 asin sqrt((1 - y)/2) >= sqrt(2 (1 - y)) and
+      tan t >= t, so tan(theta) >= scale sqrt(2 (1 - y)) (y clipped to [0, 1]): contact is
+      impossible when 2 scale² (1 - y) shear_ph² > x².
+
+    The relative margins 1e-9 keep the tests on the safe side of round-off.
     """
     sh2 = shear_ph * shear_ph
     by_angle = ~(-x > shear_ph * tan_max * (1.0 + 1e-9))
     by_own = (y <= 0.0) | ((y < 1.0) & ~(scale * scale * (1.0 - y * y) * sh2 * (1.0 + 1e-9) < x * x * y * y))
-    return (x > 0.0) | ((shear_ph > 0.0) & by_angle & by_own)
+    yc = 0.0 if y < 0.0 else (1.0 if y > 1.0 else y)
+    lifted = (shear_ph < 0.0) & (2.0 * scale * scale * (1.0 - yc) * sh2 > x * x * (1.0 + 1e-9))
+    return ((x > 0.0) & ~lifted) | ((shear_ph > 0.0) & by_angle & by_own)
 
 
 @numba.njit(cache=True)

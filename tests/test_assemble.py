@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from asperity_sim import Population, presets, reference
-from asperity_sim.assemble import Workspace, birth_angles, evaluate, evaluate_steps, evaluation_from, snapshot
+from asperity_sim.assemble import (Workspace, birth_angles, evaluate, evaluate_steps, evaluation_from,
+                                   may_touch_follow, snapshot)
 
 um = 1e-6
 R1, S1 = presets.R1, presets.S1
@@ -120,6 +121,28 @@ def test_skipped_asperities_are_out_of_contact(delta_um):
     assert (snap["delta_n"] > 0).sum() == ev.n_contact
     assert (snap["state"] == 3).sum() == ev.n_slip
     assert np.allclose(R1.N * pop.weight * snap["force"].sum(axis=0), ev.stress, rtol=1e-12)
+
+
+def test_touch_screen_never_drops_a_contact_and_drops_lifted_asperities():
+    """may_touch_follow is False only where the exact overlap cos(theta) x + sin(theta) shear <= 0, theta =
+    (2u/pi) acos(clip(y)) with libm; near-zero overlaps included.  Below the closure (x > 0), a shear
+    that lifts the asperity off is recognised (most such asperities are dropped before any trigonometry)."""
+    may_touch = numba.njit(lambda x, s, y, sc, t: may_touch_follow(x, s, y, sc, t))
+    rng = np.random.default_rng(7)
+    n = 200_000
+    y = rng.choice([-0.5, 0.0, 1.0, 1.5], n) * (rng.random(n) < 0.1) + rng.random(n) * (rng.random(n) >= 0.1)
+    scale = rng.random(n)
+    theta = scale * np.arccos(np.clip(y, 0.0, 1.0))
+    shear = rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-3, 1, n)
+    # x near the root of the overlap: cos(theta) x + sin(theta) shear = eps
+    eps = rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-16, -1, n)
+    x = np.where(rng.random(n) < 0.5, (eps - np.sin(theta) * shear) / np.maximum(np.cos(theta), 1e-300),
+                 rng.normal(0.0, 1.0, n))
+    dn = np.cos(theta) * x + np.sin(theta) * shear
+    keep = np.array([may_touch(a, b, c, d, np.inf) for a, b, c, d in zip(x, shear, y, scale)])
+    assert not np.any(~keep & (dn > 0.0))
+    lifted = (x > 0.0) & (shear < 0.0) & (dn < -1e-3 * x)
+    assert lifted.sum() > 1000 and (~keep[lifted]).mean() > 0.5
 
 
 @pytest.mark.statistical
