@@ -630,19 +630,23 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
             gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
             for i in range(m):  # vectorised
                 slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
-            for i in range(m):  # the law, per contact in contact
-                if geo[G_DN, i] > 0.0:
-                    o = trial(geo[G_DN, i], geo[G_DDS, i], geo[G_DDT, i], dn_c[b0 + i], 0.0, geo[G_R, i], consts,
-                              arrays, b0 + i, False)
-                    for a in range(13):
-                        out[a, i] = o[a]
-                else:
-                    for a in range(13):
-                        out[a, i] = 0.0
+            trial_block(geo[G_DN], geo[G_DDS], geo[G_DDT], geo[G_R], dn_c, b0, m, consts, arrays, out)  # the law
             for i in range(m):  # vectorised
                 slot_values(vals, i, geo, out)
             add_values(vals, m, acc)
         partial[ic, :] = acc
+
+
+def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
+    """The law's ``trial_block`` for a law without one: ``trial`` of each committed contact in contact."""
+    for i in range(m):
+        if dn[i] > 0.0:
+            o = trial(dn[i], dds[i], ddt[i], dn_c[b0 + i], 0.0, R[i], consts, arrays, b0 + i, False)
+            for a in range(13):
+                out[a, i] = o[a]
+        else:
+            for a in range(13):
+                out[a, i] = 0.0
 
 
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
@@ -857,16 +861,24 @@ _HISTORY = {"slot_pass": dict(cache=True, parallel=True, error_model="numpy"),
             "fresh_pass": dict(cache=True, parallel=True, error_model="numpy"),
             "commit_slots": dict(cache=True, parallel=True, error_model="numpy"),
             "commit_fresh": dict(cache=True, parallel=True, error_model="numpy"),
-            "snapshot_slots": dict(cache=True, parallel=True, error_model="numpy")}
+            "snapshot_slots": dict(cache=True, parallel=True, error_model="numpy"),
+            "each_contact": dict(cache=True, error_model="numpy")}
 
 
 @functools.lru_cache(maxsize=None)
 def _kernels_of(law: laws.Law) -> dict:
     templates = _PATH_INDEPENDENT if law.path_independent else _HISTORY
     g = globals()
-    bindings = ({"local": law.local} if law.path_independent
-                else {"trial": law.history.trial, "commit_law": law.history.commit})
-    return laws.specialise({name: g[name] for name in templates}, law, bindings, templates)
+    aliases = {}
+    if law.path_independent:
+        bindings = {"local": law.local}
+    else:
+        bindings = {"trial": law.history.trial, "commit_law": law.history.commit}
+        if law.history.trial_block is None:
+            aliases["trial_block"] = "each_contact"
+        else:
+            bindings["trial_block"] = law.history.trial_block
+    return laws.specialise({name: g[name] for name in templates}, law, bindings, templates, aliases)
 
 
 def kernels(law) -> dict:

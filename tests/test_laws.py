@@ -48,6 +48,31 @@ def test_a_law_registered_here_runs_through_simulate_and_equals_the_paper_law_wi
     assert ours.n_contact.values[-1] > 0
 
 
+def test_a_history_law_without_a_block_trial_is_tried_contact_by_contact_with_the_same_result():
+    """mdr registered again without its ``trial_block``: the generic reduction calls its ``trial`` per
+    contact, and a cyclic path gives the stresses, tangents and energies of mdr with its block trial."""
+    import dataclasses
+
+    mdr = laws.get("mdr")
+    plain = dataclasses.replace(mdr, name="test_mdr_per_contact",
+                                history=dataclasses.replace(mdr.history, trial_block=None))
+    laws.register(plain)
+    try:
+        st = [paths.Stage((paths.STRESS, paths.DISPLACEMENT, paths.DISPLACEMENT), (100e6, 0, 0), 4)]
+        for a in (1.5, -1.5, 0.0):
+            st.append(paths.Stage((paths.STRESS, paths.DISPLACEMENT, paths.DISPLACEMENT), (100e6, a * um, 0.3 * a * um),
+                                  6))
+        path = paths.LoadPath(tuple(st))
+        block = simulate(R1, path, n=3000, seed=5, law="mdr", k=8)
+        each = simulate(R1, path, n=3000, seed=5, law=plain.name, k=8)
+    finally:
+        laws.LAWS.pop(plain.name)
+    for name in ("stress", "tangent", "dissipation", "elastic_energy"):
+        a, b = block[name].values, each[name].values
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max(), err_msg=name)
+    assert np.abs(block.stress.values[:, 1]).max() > 0
+
+
 def test_registry_rejects_unknown_names_and_malformed_laws():
     with pytest.raises(ValueError, match=r"not known \(valid: paper, mdr"):
         laws.get("coulomb")

@@ -21,7 +21,11 @@ A law is one module that defines numba kernels and a :class:`Law` object, and ca
   ``dn_ref``: the overlap a fresh contact is expected to reach, 0 if unknown) and never
   writes; ``commit(..., scratch)`` writes the state at the converged displacement (dn <= 0:
   the contact is lost and its memory erased) and returns ``(code, work, stored,
-  dissipation, events)`` [J] for the energy balance.
+  dissipation, events)`` [J] for the energy balance.  Optionally ``trial_block(dn, dds, ddt, R,
+  dn_c, b0, m, consts, arrays, out)`` gives ``out[:, i]`` = the trial of the committed contact
+  in slot b0 + i (i < m) from block rows of its overlap, increment and radius where dn[i] > 0,
+  zeros elsewhere: a law may then arrange the work over a block (vectorised per-contact
+  scalars, say); without it the generic reduction calls ``trial`` contact by contact.
 
 ``consts`` is the tuple of floats ``law.constants(params, k)`` (built once per run, so
 kernels never see Python objects).  Kernels must be ``@numba.njit(cache=True,
@@ -55,6 +59,8 @@ class History:
     bytes_per_contact : (k, dtype) -> bytes of the arrays per slot
     validate : (arrays, live slots) -> None, raising ValueError for a state the kernels cannot use
         (read from a checkpoint, say)
+    trial_block : optional numba kernel, the trial of the committed contacts of a block of slots
+        (see the module docstring); without it they are tried one by one
     """
 
     arrays: Callable
@@ -64,6 +70,7 @@ class History:
     events_long_name: str
     bytes_per_contact: Callable
     validate: Callable | None = None  # (arrays, live slots) -> None, ValueError if the state cannot be used
+    trial_block: Callable | None = None  # the trial of a block of committed contacts (module docstring)
 
 
 @dataclass(frozen=True)
@@ -103,7 +110,8 @@ class Law:
         contact and the geometry, so a change in any of them compiles anew (a law whose kernels
         call helpers from other files should keep them in its own file).
         """
-        funcs = [self.local] if self.local is not None else [self.history.trial, self.history.commit]
+        funcs = [self.local] if self.local is not None else [self.history.trial, self.history.commit,
+                                                             self.history.trial_block or self.history.trial]
         files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs}
         here = Path(__file__).parent
         files |= {here / "hertz.py", here.parent / "geometry.py"}
@@ -134,14 +142,15 @@ def get(name) -> Law:
         raise ValueError(f"law = {name!r} is not known (valid: {', '.join(LAWS)})") from None
 
 
-def specialise(templates: dict, law: Law, bindings: dict, jit: dict) -> dict:
+def specialise(templates: dict, law: Law, bindings: dict, jit: dict, aliases: dict | None = None) -> dict:
     """numba kernels of the generic ``templates`` (name -> plain function) bound to one law.
 
     Each template is copied with globals where the names in ``bindings`` (e.g. ``local``)
     refer to the law's kernels and each template name refers to its own bound copy, and
     compiled with the options ``jit[name]``.  The copies get the qualified name
     ``<template>[<law name>-<fingerprint>]``, so numba caches each law's kernels on disk
-    under their own name, and a changed law compiles anew.
+    under their own name, and a changed law compiles anew.  ``aliases`` (name -> template name)
+    bind further names to the bound copies (a default for a kernel the law does not give).
     """
     import numba
 
@@ -157,6 +166,8 @@ def specialise(templates: dict, law: Law, bindings: dict, jit: dict) -> dict:
         copy.__doc__ = f.__doc__
         out[name] = numba.njit(**jit[name])(copy)
     namespace.update(out)
+    for name, template in (aliases or {}).items():  # a binding that is one of the templates' own copies
+        namespace[name] = out[template]
     return out
 
 
