@@ -484,21 +484,21 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((8, m))
+    sc = np.empty((m, 8))  # per contact: c, q, f_n, k_n, n_in, rho, drho, n_c
     for i in range(m):
         touch = dn[i] > 0.0
         x, h = (dn[i], h_all[b0 + i]) if touch else (1.0, 1.0)  # any contact: finite values, discarded
-        sc[0, i], sc[1, i], sc[2, i], sc[3, i], n_in, sc[5, i], sc[6, i], n_c = contact_scales(
+        sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3], n_in, sc[i, 5], sc[i, 6], n_c = contact_scales(
             x, dn_c[b0 + i] if touch else 0.5, R[i], h, E_star, lam)
-        sc[4, i], sc[7, i] = n_in, n_c
+        sc[i, 4], sc[i, 7] = n_in, n_c
     for i in range(m):
         if dn[i] <= 0.0:
             for a in range(13):
                 out[a, i] = 0.0
             continue
         Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n = committed_springs_scaled(
-            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[0, i], sc[1, i], sc[2, i], sc[3, i],
-            int(sc[4, i]), sc[5, i], sc[6, i], int(sc[7, i]))
+            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3],
+            int(sc[i, 4]), sc[i, 5], sc[i, 6], int(sc[i, 7]))
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = f_n, Fs, Ft, k_n, 0.0, 0.0
         out[6, i], out[7, i], out[8, i], out[9, i], out[10, i], out[11, i] = J10, J11, J12, J20, J21, J22
         out[12, i] = float(state_code(n_springs, n_slip))
