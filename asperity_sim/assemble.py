@@ -649,6 +649,15 @@ def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
                 out[a, i] = 0.0
 
 
+def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
+    """The law's ``commit_block`` for a law without one: ``commit`` of each live committed contact."""
+    for i in range(m):
+        if live[i]:
+            code, work, stored, diss, events = commit_law(dn[i], dds[i], ddt[i], dn_c[b0 + i], 0.0, R[i], consts,
+                                                          arrays, b0 + i, False, scratch)
+            res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
+
+
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
                partial, spans):
     """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
@@ -708,8 +717,11 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     for kk in numba.prange(n_chunks):
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_COMMIT)
+        work = stored = diss = events = 0.0
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         geo = np.empty((N_GEO, BLOCK))
+        live = np.empty(BLOCK, dtype=np.bool_)
+        res = np.empty((5, BLOCK))
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
         for b0 in range(lo, hi, BLOCK):
             m = min(hi, b0 + BLOCK) - b0
@@ -730,17 +742,19 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                 for i in range(m):  # vectorised
                     slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
             for i in range(m):
+                live[i] = asp[b0 + i] >= 0
+            commit_block(geo[G_DN], geo[G_DDS], geo[G_DDT], geo[G_R], dn_c, b0, m, live, consts, arrays, scratch, res)
+            for i in range(m):
                 sl = b0 + i
                 j = asp[sl]
                 if j < 0:
                     continue
                 dn = geo[G_DN, i]
-                new, work, stored, diss, events = commit_law(dn, geo[G_DDS, i], geo[G_DDT, i], dn_c[sl], 0.0,
-                                                             geo[G_R, i], consts, arrays, sl, False, scratch)
-                acc[C_WORK] += work
-                acc[C_STORED] += stored
-                acc[C_DISS] += diss
-                acc[C_EVENTS] += events
+                new = int(res[0, i])
+                work += res[1, i]
+                stored += res[2, i]
+                diss += res[3, i]
+                events += res[4, i]
                 acc[C_TR + 4 * code[sl] + new] += 1.0
                 if dn <= 0.0:
                     asp[sl] = -1
@@ -750,6 +764,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                 else:
                     dn_c[sl] = dn
                     code[sl] = new
+        acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
         partial[ic, :] = acc
 
 
@@ -862,7 +877,8 @@ _HISTORY = {"slot_pass": dict(cache=True, parallel=True, error_model="numpy"),
             "commit_slots": dict(cache=True, parallel=True, error_model="numpy"),
             "commit_fresh": dict(cache=True, parallel=True, error_model="numpy"),
             "snapshot_slots": dict(cache=True, parallel=True, error_model="numpy"),
-            "each_contact": dict(cache=True, error_model="numpy")}
+            "each_contact": dict(cache=True, error_model="numpy"),
+            "each_commit": dict(cache=True, error_model="numpy")}
 
 
 @functools.lru_cache(maxsize=None)
@@ -874,10 +890,12 @@ def _kernels_of(law: laws.Law) -> dict:
         bindings = {"local": law.local}
     else:
         bindings = {"trial": law.history.trial, "commit_law": law.history.commit}
-        if law.history.trial_block is None:
-            aliases["trial_block"] = "each_contact"
-        else:
-            bindings["trial_block"] = law.history.trial_block
+        for name, default, given in (("trial_block", "each_contact", law.history.trial_block),
+                                     ("commit_block", "each_commit", law.history.commit_block)):
+            if given is None:
+                aliases[name] = default
+            else:
+                bindings[name] = given
     return laws.specialise({name: g[name] for name in templates}, law, bindings, templates, aliases)
 
 

@@ -48,14 +48,15 @@ def test_a_law_registered_here_runs_through_simulate_and_equals_the_paper_law_wi
     assert ours.n_contact.values[-1] > 0
 
 
-def test_a_history_law_without_a_block_trial_is_tried_contact_by_contact_with_the_same_result():
-    """mdr registered again without its ``trial_block``: the generic reduction calls its ``trial`` per
-    contact, and a cyclic path gives the stresses, tangents and energies of mdr with its block trial."""
+def test_a_history_law_without_block_kernels_is_run_contact_by_contact_with_the_same_result():
+    """mdr registered again without its ``trial_block`` and ``commit_block``: the generic reductions call its
+    ``trial`` and ``commit`` per contact, and a cyclic path gives the stresses, tangents and energies of mdr
+    with its block kernels."""
     import dataclasses
 
     mdr = laws.get("mdr")
     plain = dataclasses.replace(mdr, name="test_mdr_per_contact",
-                                history=dataclasses.replace(mdr.history, trial_block=None))
+                                history=dataclasses.replace(mdr.history, trial_block=None, commit_block=None))
     laws.register(plain)
     try:
         st = [paths.Stage((paths.STRESS, paths.DISPLACEMENT, paths.DISPLACEMENT), (100e6, 0, 0), 4)]
@@ -67,7 +68,7 @@ def test_a_history_law_without_a_block_trial_is_tried_contact_by_contact_with_th
         each = simulate(R1, path, n=3000, seed=5, law=plain.name, k=8)
     finally:
         laws.LAWS.pop(plain.name)
-    for name in ("stress", "tangent", "dissipation", "elastic_energy"):
+    for name in ("stress", "tangent", "dissipation", "elastic_energy", "external_work"):
         a, b = block[name].values, each[name].values
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max(), err_msg=name)
     assert np.abs(block.stress.values[:, 1]).max() > 0

@@ -24,8 +24,10 @@ A law is one module that defines numba kernels and a :class:`Law` object, and ca
   dissipation, events)`` [J] for the energy balance.  Optionally ``trial_block(dn, dds, ddt, R,
   dn_c, b0, m, consts, arrays, out)`` gives ``out[:, i]`` = the trial of the committed contact
   in slot b0 + i (i < m) from block rows of its overlap, increment and radius where dn[i] > 0,
-  zeros elsewhere: a law may then arrange the work over a block (vectorised per-contact
-  scalars, say); without it the generic reduction calls ``trial`` contact by contact.
+  zeros elsewhere, and ``commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays,
+  scratch, res)`` gives ``res[:, i]`` = the 5 values of ``commit`` of slot b0 + i where
+  ``live[i]``: a law may then arrange the work over a block (vectorised per-contact scalars,
+  say); without them the generic reductions call ``trial`` and ``commit`` contact by contact.
 
 ``consts`` is the tuple of floats ``law.constants(params, k)`` (built once per run, so
 kernels never see Python objects).  Kernels must be ``@numba.njit(cache=True,
@@ -59,8 +61,8 @@ class History:
     bytes_per_contact : (k, dtype) -> bytes of the arrays per slot
     validate : (arrays, live slots) -> None, raising ValueError for a state the kernels cannot use
         (read from a checkpoint, say)
-    trial_block : optional numba kernel, the trial of the committed contacts of a block of slots
-        (see the module docstring); without it they are tried one by one
+    trial_block, commit_block : optional numba kernels, the trial and the commit of the committed
+        contacts of a block of slots (see the module docstring); without them, one by one
     """
 
     arrays: Callable
@@ -71,6 +73,7 @@ class History:
     bytes_per_contact: Callable
     validate: Callable | None = None  # (arrays, live slots) -> None, ValueError if the state cannot be used
     trial_block: Callable | None = None  # the trial of a block of committed contacts (module docstring)
+    commit_block: Callable | None = None  # the commit of a block of committed contacts (module docstring)
 
 
 @dataclass(frozen=True)
@@ -110,8 +113,9 @@ class Law:
         contact and the geometry, so a change in any of them compiles anew (a law whose kernels
         call helpers from other files should keep them in its own file).
         """
-        funcs = [self.local] if self.local is not None else [self.history.trial, self.history.commit,
-                                                             self.history.trial_block or self.history.trial]
+        funcs = [self.local] if self.local is not None else [
+            self.history.trial, self.history.commit, self.history.trial_block or self.history.trial,
+            self.history.commit_block or self.history.commit]
         files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs}
         here = Path(__file__).parent
         files |= {here / "hertz.py", here.parent / "geometry.py"}

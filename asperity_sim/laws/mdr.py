@@ -526,23 +526,28 @@ def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled
 def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     """:func:`springs` of a commit of a committed contact (dn > 0) whose springs fit, in place.
 
+    Returns (fits, n_springs, n_slip, work, dissipation, sum |w|² of the new vectors, Hertz
+    energy before, Hertz energy after) (:func:`committed_commit_scaled`).
+    """
+    c, q, f_n, k_n, n_in, rho, drho, n_c = contact_scales(dn, dn_c, R, h, E_star, lam)
+    return committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, n_in, rho, drho, n_c,
+                                   hertz_energy(dn_c, R, E_star))
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, n_in, rho, drho, n_c, e_old):
+    """:func:`committed_commit` given the contact's :func:`contact_scales` and Hertz energy before.
+
     The springs leaving contact are released, those continuing go through the lean loop, the
     few entering (or holding memory across the edge after coarsening) through the general
-    step; springs beyond those in contact are zeroed.  Returns (fits, n_springs, n_slip, work,
-    dissipation, sum |w|² of the new vectors, Hertz energy before, Hertz energy after); nothing is
-    written when the springs in contact do not fit in the store (fits False).
+    step; springs beyond those in contact are zeroed.  Nothing is written when the springs in
+    contact do not fit in the store (fits False).
     """
-    c = h * h / R
-    q = 2.0 * E_star * h / lam
-    lm = lam * mu
-    f_n, k_n, n_in, rho, drho, sR = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
-    sdc = fsqrt(dn_c)
-    e_old = (8.0 / 15.0) * E_star * sR * dn_c * dn_c * sdc  # hertz_energy
     if n_in > w.shape[1]:
         return False, n_in, 0, 0.0, 0.0, 0.0, e_old, 0.0
+    lm = lam * mu
     lm_r = lm * rho
     can_stick = lm != 0.0
-    n_c = springs_below(dn_c, c, sdc * sR / h)
     n_cont = min(n_c, n_in)
     # a commit zeroes the springs beyond those in contact (a coarsening may leave one more, across the
     # edge), so only springs n_in .. n_c + 1 can hold a vector to release
@@ -560,6 +565,43 @@ def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
         w[1, i] = 0.0
     return (True, n_in, n_in - int(st + st2), work + q * wk + wk2, dissipation + q * dd + dd2, stored, e_old,
             0.4 * f_n * dn)
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
+    """:func:`mdr_commit` of the committed contacts in slots b0 .. b0 + m where ``live`` (res[:, i] = its 5 values).
+
+    As :func:`mdr_trial_block`: the scales of every contact in contact first, in one loop that
+    vectorises, then the springs contact by contact; a contact that is lost or outgrew its
+    springs goes through :func:`mdr_commit`.  The same values as :func:`mdr_commit`.
+    """
+    E_star, lam, mu, k, dn_floor = consts
+    w_all, h_all = arrays
+    q_unit = 2.0 * E_star / lam
+    sc = np.empty((m, 9))  # per contact: c, q, f_n, n_in, rho, drho, n_c, Hertz energy before
+    for i in range(m):
+        go = live[i] & (dn[i] > 0.0)
+        x, xc, h = (dn[i], dn_c[b0 + i], h_all[b0 + i]) if go else (1.0, 0.5, 1.0)  # finite values, discarded
+        sc[i, 0], sc[i, 1], sc[i, 2], _, n_in, sc[i, 4], sc[i, 5], n_c = contact_scales(x, xc, R[i], h, E_star, lam)
+        sc[i, 3], sc[i, 6], sc[i, 7] = n_in, n_c, hertz_energy(xc, R[i], E_star)
+    for i in range(m):
+        if not live[i]:
+            continue
+        sl = b0 + i
+        if dn[i] > 0.0:
+            fits, n_springs, n_slip, work, diss, stored, e_old, e_new = committed_commit_scaled(
+                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, 0], sc[i, 1], sc[i, 2], int(sc[i, 3]),
+                sc[i, 4], sc[i, 5], int(sc[i, 6]), sc[i, 7])
+            if fits:
+                res[0, i] = state_code(n_springs, n_slip)
+                res[1, i] = work + e_new - e_old
+                res[2, i] = 0.5 * q_unit * h_all[sl] * stored + e_new
+                res[3, i] = diss
+                res[4, i] = 0.0
+                continue
+        code, work, stored, diss, events = mdr_commit(dn[i], dds[i], ddt[i], dn_c[sl], 0.0, R[i], consts, arrays, sl,
+                                                      False, scratch)
+        res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
 
 
 @numba.njit(cache=True)
@@ -671,7 +713,8 @@ MDR = register(Law(
     name="mdr",
     summary="Hertz + vector MDR springs per contact: loading, unloading, reloading, turning (history)",
     constants=constants,
-    history=History(arrays=arrays, trial=mdr_trial, commit=mdr_commit, trial_block=mdr_trial_block, events="coarsenings",
+    history=History(arrays=arrays, trial=mdr_trial, commit=mdr_commit, trial_block=mdr_trial_block,
+                    commit_block=mdr_commit_block, events="coarsenings",
                     events_long_name="contacts whose springs were coarsened in the increment",
                     bytes_per_contact=bytes_per_contact, validate=validate),
     domain="any path",
