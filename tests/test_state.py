@@ -256,3 +256,28 @@ def test_every_contact_has_at_least_k_springs_at_its_largest_extent():
     in_contact = np.ceil(np.sqrt(R * dn) / h - 0.5)
     assert live.size > 100
     assert in_contact.min() >= k and in_contact.max() <= 2 * k
+
+
+def test_a_commit_leaves_no_vector_beyond_the_springs_in_contact_but_one():
+    """The commit of a contact whose springs fit releases only springs up to those in contact at the
+    committed overlap plus one: every other commit zeroes the springs beyond those in contact, and a
+    coarsening may leave one merged spring across the edge. Checked after growth (coarsenings), shear,
+    a turn and unloading."""
+    k = 4
+    pop = Population.sample(R1, 3000, seed=6)
+    state = ContactState(pop, "mdr", k=k)
+    steps = ([np.array([x, 0.0, 0.0]) for x in np.linspace(0, 15, 11)[1:] * um]
+             + [np.array([15.0, y, 0.3 * y]) * um for y in np.linspace(0, 4, 6)[1:]]
+             + [np.array([15.0 - z, 4.0 - z, 1.2 + z]) * um for z in np.linspace(0, 3, 7)[1:]])
+    coarsened = 0
+    for d in steps:
+        evaluate(pop, d, law="mdr", state=state)
+        coarsened += state.commit(d).events
+        live = np.flatnonzero(state.asp[:state.n_slots] >= 0)
+        w, h = state.arrays[0][live], state.arrays[1][live]
+        c = h * h / pop.R[state.asp[live]]
+        i = np.arange(w.shape[2]) + 0.5
+        in_contact = (state.dn_c[live, None] - c[:, None] * i**2 > 0.0).sum(axis=1)
+        beyond = np.arange(w.shape[2])[None, :] > in_contact[:, None]  # i >= in_contact + 1
+        assert not np.any(w[:, 0][beyond]) and not np.any(w[:, 1][beyond])
+    assert coarsened > 0 and live.size > 100
