@@ -1007,11 +1007,14 @@ class Workspace:
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
         self.fresh_key = None
 
+    @staticmethod
+    def trial_key(delta, state):
+        """What identifies a trial: the bits of its displacement and the committed state it was made on."""
+        return np.asarray(delta, dtype=float).tobytes(), id(state), state.serial
+
     def fresh_spans(self, delta, state):
         """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
-        if self.fresh_key == (np.asarray(delta, dtype=float).tobytes(), id(state), state.serial):
-            return self.spans
-        return _EMPTY_SPANS
+        return self.spans if self.fresh_key == self.trial_key(delta, state) else _EMPTY_SPANS
 
     def rows(self, m):
         """At least m rows of partial sums (grown when a history law has more slot chunks)."""
@@ -1088,7 +1091,7 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
         workspace.fresh_key = None
         kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
                            state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans)
-        workspace.fresh_key = (d.tobytes(), id(state), state.serial)
+        workspace.fresh_key = workspace.trial_key(d, state)
         if n_slot:
             kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
                               state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:])

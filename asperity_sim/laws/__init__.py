@@ -113,10 +113,9 @@ class Law:
         contact and the geometry, so a change in any of them compiles anew (a law whose kernels
         call helpers from other files should keep them in its own file).
         """
-        funcs = [self.local] if self.local is not None else [
-            self.history.trial, self.history.commit, self.history.trial_block or self.history.trial,
-            self.history.commit_block or self.history.commit]
-        files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs}
+        h = self.history
+        funcs = [self.local] if h is None else [h.trial, h.commit, h.trial_block, h.commit_block]
+        files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs if f is not None}
         here = Path(__file__).parent
         files |= {here / "hertz.py", here.parent / "geometry.py"}
         h = hashlib.sha256(self.name.encode())

@@ -14,9 +14,14 @@ from ..geometry import fsqrt
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def hertz(dn, R, E_star):
     """(f_n [N], k_n [N/m]) of an overlap dn > 0 [m] on relative radius R [m]."""
-    C = (4.0 / 3.0) * E_star * fsqrt(R)
-    sq = fsqrt(dn)
-    return C * dn * sq, 1.5 * C * sq
+    return hertz_roots(dn, fsqrt(R), fsqrt(dn), E_star)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def hertz_roots(dn, sqrt_R, sqrt_dn, E_star):
+    """:func:`hertz` given sqrt(R) and sqrt(dn) (for a caller that needs the roots too)."""
+    C = (4.0 / 3.0) * E_star * sqrt_R
+    return C * dn * sqrt_dn, 1.5 * C * sqrt_dn
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -24,4 +29,10 @@ def hertz_energy(dn, R, E_star):
     """Elastic energy of the normal contact [J]; 0 out of contact."""
     if dn <= 0.0:
         return 0.0
-    return (8.0 / 15.0) * E_star * fsqrt(R) * dn * dn * fsqrt(dn)
+    return hertz_energy_roots(dn, fsqrt(R), fsqrt(dn), E_star)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def hertz_energy_roots(dn, sqrt_R, sqrt_dn, E_star):
+    """:func:`hertz_energy` of an overlap dn > 0 given sqrt(R) and sqrt(dn)."""
+    return (8.0 / 15.0) * E_star * sqrt_R * dn * dn * sqrt_dn

@@ -47,7 +47,7 @@ import numpy as np
 
 from . import FULL_SLIP, PARTIAL, STICK, History, Law, register
 from ..geometry import fsqrt
-from .hertz import hertz, hertz_energy
+from .hertz import hertz, hertz_energy, hertz_energy_roots, hertz_roots
 
 FLOOR_FRACTION = 1e-5  # dn_floor / ((alpha + 1) beta)
 
@@ -179,7 +179,7 @@ def continuing_commit(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, can_stick):
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
-    """(f_n, k_n, n_in, rho, drho, sqrt R): Hertz force and stiffness, springs in contact, the Coulomb scale.
+    """(f_n, k_n, n_in, rho, drho, sqrt R, sqrt dn): Hertz force and stiffness, springs in contact, Coulomb scale.
 
     The Coulomb limit of spring i is lam mu rho u_i, with rho = f_n / (2 E* h sum u_i) the ratio
     of the Hertz force to the springs' own normal force (1 up to the discretisation), so that a
@@ -188,13 +188,12 @@ def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
     roots shared: sqrt(dn / c) = sqrt(dn) sqrt(R) / h.
     """
     sR, sdn = fsqrt(R), fsqrt(dn)
-    C = (4.0 / 3.0) * E_star * sR
-    f_n, k_n = C * dn * sdn, 1.5 * C * sdn
+    f_n, k_n = hertz_roots(dn, sR, sdn, E_star)
     n_in, sum_u, _ = tail_sums(0, springs_below(dn, c, sdn * sR / h), dn, dn_c, c)
     some = sum_u > 0.0  # selects, not branches: a loop over contacts vectorises
     rho = f_n / (2.0 * E_star * h * sum_u) if some else 1.0
     drho = rho * (1.5 / dn - n_in / sum_u) if some & ~scaled else 0.0
-    return f_n, k_n, n_in, rho, drho, sR
+    return f_n, k_n, n_in, rho, drho, sR, sdn
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -267,7 +266,7 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     c = h * h / R
     q = 2.0 * E_star * h / lam
     lm = lam * mu
-    f_n, k_n, n_in, rho, drho, _ = coulomb_scale(dn, dn_c, R, E_star, h, c, scaled)
+    f_n, k_n, n_in, rho, drho, _, _ = coulomb_scale(dn, dn_c, R, E_star, h, c, scaled)
     lm_r = lm * rho
     can_stick = lm != 0.0
     gap = dn - dn_c
@@ -300,14 +299,17 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def contact_scales(dn, dn_c, R, h, E_star, lam):
-    """(c, q, f_n, k_n, n_in, rho, drho, n_c) of a committed contact at overlap dn > 0: c = h²/R, q = 2 E* h / lam,
-    Hertz, springs in contact, Coulomb scale (:func:`coulomb_scale`) and the springs in contact at dn_c.
+    """(c, q, f_n, k_n, n_in, rho, drho, n_c, e, e_c) of a committed contact at overlap dn > 0: c = h²/R,
+    q = 2 E* h / lam, Hertz, springs in contact, Coulomb scale (:func:`coulomb_scale`), the springs in
+    contact at dn_c, and the Hertz energies at dn and dn_c [J] (one set of square roots for all).
 
     Branch-free, so that a loop over the contacts of a block vectorises (:func:`mdr_trial_block`).
     """
     c = h * h / R
-    f_n, k_n, n_in, rho, drho, sR = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
-    return c, 2.0 * E_star * h / lam, f_n, k_n, n_in, rho, drho, springs_below(dn_c, c, fsqrt(dn_c) * sR / h)
+    f_n, k_n, n_in, rho, drho, sR, sdn = coulomb_scale(dn, dn_c, R, E_star, h, c, False)
+    sdc = fsqrt(dn_c)
+    return (c, 2.0 * E_star * h / lam, f_n, k_n, n_in, rho, drho, springs_below(dn_c, c, sdc * sR / h),
+            hertz_energy_roots(dn, sR, sdn, E_star), hertz_energy_roots(dn_c, sR, sdc, E_star))
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
@@ -316,7 +318,7 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
 
     Returns (F_s, F_t, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n) (Hertz: :func:`coulomb_scale`).
     """
-    c, q, f_n, k_n, n_in, rho, drho, n_c = contact_scales(dn, dn_c, R, h, E_star, lam)
+    c, q, f_n, k_n, n_in, rho, drho, n_c, _, _ = contact_scales(dn, dn_c, R, h, E_star, lam)
     return committed_springs_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, k_n, n_in, rho, drho, n_c)
 
 
@@ -488,7 +490,7 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     for i in range(m):
         touch = dn[i] > 0.0
         x, h = (dn[i], h_all[b0 + i]) if touch else (1.0, 1.0)  # any contact: finite values, discarded
-        sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3], n_in, sc[i, 5], sc[i, 6], n_c = contact_scales(
+        sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3], n_in, sc[i, 5], sc[i, 6], n_c, _, _ = contact_scales(
             x, dn_c[b0 + i] if touch else 0.5, R[i], h, E_star, lam)
         sc[i, 4], sc[i, 7] = n_in, n_c
     for i in range(m):
@@ -526,25 +528,24 @@ def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled
 def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     """:func:`springs` of a commit of a committed contact (dn > 0) whose springs fit, in place.
 
-    Returns (fits, n_springs, n_slip, work, dissipation, sum |w|² of the new vectors, Hertz
-    energy before, Hertz energy after) (:func:`committed_commit_scaled`).
+    Returns (fits, code, work, stored, dissipation) [J] (:func:`committed_commit_scaled`).
     """
-    c, q, f_n, k_n, n_in, rho, drho, n_c = contact_scales(dn, dn_c, R, h, E_star, lam)
-    return committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, n_in, rho, drho, n_c,
-                                   hertz_energy(dn_c, R, E_star))
+    c, q, f_n, k_n, n_in, rho, drho, n_c, e, e_c = contact_scales(dn, dn_c, R, h, E_star, lam)
+    return committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, n_in, rho, drho, n_c, e_old):
-    """:func:`committed_commit` given the contact's :func:`contact_scales` and Hertz energy before.
+def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c):
+    """:func:`committed_commit` given the contact's :func:`contact_scales`.
 
     The springs leaving contact are released, those continuing go through the lean loop, the
     few entering (or holding memory across the edge after coarsening) through the general
-    step; springs beyond those in contact are zeroed.  Nothing is written when the springs in
+    step; springs beyond those in contact are zeroed.  Returns :func:`mdr_commit`'s code, work,
+    stored energy and dissipation [J], Hertz included; nothing is written when the springs in
     contact do not fit in the store (fits False).
     """
     if n_in > w.shape[1]:
-        return False, n_in, 0, 0.0, 0.0, 0.0, e_old, 0.0
+        return False, 0, 0.0, 0.0, 0.0
     lm = lam * mu
     lm_r = lm * rho
     can_stick = lm != 0.0
@@ -563,8 +564,8 @@ def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, n_in, rho
     for i in range(n_in, n_held):
         w[0, i] = 0.0
         w[1, i] = 0.0
-    return (True, n_in, n_in - int(st + st2), work + q * wk + wk2, dissipation + q * dd + dd2, stored, e_old,
-            0.4 * f_n * dn)
+    return (True, state_code(n_in, n_in - int(st + st2)), work + q * wk + wk2 + e - e_c, 0.5 * q * stored + e,
+            dissipation + q * dd + dd2)
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
@@ -577,27 +578,23 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    q_unit = 2.0 * E_star / lam
-    sc = np.empty((m, 9))  # per contact: c, q, f_n, n_in, rho, drho, n_c, Hertz energy before
+    sc = np.empty((m, 8))  # per contact: c, q, n_in, rho, drho, n_c, Hertz energy after and before
     for i in range(m):
         go = live[i] & (dn[i] > 0.0)
         x, xc, h = (dn[i], dn_c[b0 + i], h_all[b0 + i]) if go else (1.0, 0.5, 1.0)  # finite values, discarded
-        sc[i, 0], sc[i, 1], sc[i, 2], _, n_in, sc[i, 4], sc[i, 5], n_c = contact_scales(x, xc, R[i], h, E_star, lam)
-        sc[i, 3], sc[i, 6], sc[i, 7] = n_in, n_c, hertz_energy(xc, R[i], E_star)
+        sc[i, 0], sc[i, 1], _, _, n_in, sc[i, 3], sc[i, 4], n_c, sc[i, 6], sc[i, 7] = contact_scales(
+            x, xc, R[i], h, E_star, lam)
+        sc[i, 2], sc[i, 5] = n_in, n_c
     for i in range(m):
         if not live[i]:
             continue
         sl = b0 + i
         if dn[i] > 0.0:
-            fits, n_springs, n_slip, work, diss, stored, e_old, e_new = committed_commit_scaled(
-                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, 0], sc[i, 1], sc[i, 2], int(sc[i, 3]),
-                sc[i, 4], sc[i, 5], int(sc[i, 6]), sc[i, 7])
+            fits, code, work, stored, diss = committed_commit_scaled(
+                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, 0], sc[i, 1], int(sc[i, 2]), sc[i, 3],
+                sc[i, 4], int(sc[i, 5]), sc[i, 6], sc[i, 7])
             if fits:
-                res[0, i] = state_code(n_springs, n_slip)
-                res[1, i] = work + e_new - e_old
-                res[2, i] = 0.5 * q_unit * h_all[sl] * stored + e_new
-                res[3, i] = diss
-                res[4, i] = 0.0
+                res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, 0.0
                 continue
         code, work, stored, diss, events = mdr_commit(dn[i], dds[i], ddt[i], dn_c[sl], 0.0, R[i], consts, arrays, sl,
                                                       False, scratch)
@@ -642,11 +639,9 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     n_store = w.shape[1]
     q_unit = 2.0 * E_star / lam
     if dn > 0.0 and not fresh:  # the common case: springs that fit, written over the committed ones
-        h = h_all[sl]
-        fits, n_springs, n_slip, work, diss, stored, e_old, e_new = committed_commit(dn, dds, ddt, dn_c, R, E_star,
-                                                                                     lam, mu, w, h)
+        fits, code, work, stored, diss = committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h_all[sl])
         if fits:
-            return state_code(n_springs, n_slip), work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss, 0
+            return code, work, stored, diss, 0
     e_old = 0.0 if fresh else hertz_energy(dn_c, R, E_star)
     if dn <= 0.0:
         h = h_all[sl]
