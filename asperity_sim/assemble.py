@@ -210,31 +210,45 @@ def follow_slope(touch, y, yc, scale, k_e, inv_R, dc):
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def may_touch_follow(x, shear_ph, y, scale, tan_max):
-    """False when the asperity cannot touch under policy follow, tested without trigonometry or branches.
+def may_touch_within(x_hi, s_hi, y_lo, y_hi, scale, tan_max):
+    """False when the asperity cannot touch anywhere in a box of displacements, tested without trigonometry.
 
-    ``x`` = Delta_1 - r, ``shear_ph`` = cos(phi) Delta_2 + sin(phi) Delta_3, ``y`` =
-    cos(theta_m(c, R_j)) = 1 - k_e c / R_j (Eq. 9, before clipping), ``scale`` = 2 u_j / pi, so
-    theta = scale theta_m in [0, pi/2], and ``tan_max`` bounds tan theta of every asperity
-    (:func:`cannot_touch`); delta_n = cos(theta) x + sin(theta) shear_ph.
+    delta_n = cos(theta) x + sin(theta) s grows with x = Delta_1 - r and with s = cos(phi) Delta_2
+    + sin(phi) Delta_3 (theta in [0, pi/2]), and theta = scale theta_m grows with the closure, so
+    over the box delta_n <= cos(theta) x_hi + sin(theta) s_hi with theta between its values at
+    the box's smallest and largest closure, where y = cos(theta_m) = 1 - k_e c / R_j (Eq. 9,
+    before clipping) is ``y_lo`` and ``y_hi``.  ``tan_max`` bounds tan theta of every asperity
+    at the largest closure (:func:`cannot_touch`).
 
-    - Above the closure (x <= 0) contact needs shear_ph > 0 and tan(theta) > -x / shear_ph.  tan
-      is convex on [0, pi/2) with tan 0 = 0, hence tan(theta) <= scale tan(theta_m): contact is
-      impossible when scale² (1 - y²) shear_ph² < x² y² (0 < y < 1; y >= 1 means theta_m = 0
+    - x_hi <= 0: contact needs s_hi > 0 and tan(theta) > -x_hi / s_hi.  tan is convex on
+      [0, pi/2) with tan 0 = 0, hence tan(theta) <= scale tan(theta_m): contact is impossible
+      when scale² (1 - y²) s_hi² < x_hi² y² at y = y_hi (0 < y < 1; y >= 1 means theta_m = 0
       and y <= 0 gives no bound).
-    - Below it (x > 0) a shear away from the asperity (shear_ph < 0) lifts it off when
-      tan(theta) >= x / -shear_ph.  acos y = 2 asin sqrt((1 - y)/2) >= sqrt(2 (1 - y)) and
-      tan t >= t, so tan(theta) >= scale sqrt(2 (1 - y)) (y clipped to [0, 1]): contact is
-      impossible when 2 scale² (1 - y) shear_ph² > x².
+    - x_hi > 0: a shear away from the asperity (s_hi < 0) lifts it off when tan(theta) >= x_hi /
+      -s_hi at the least angle.  acos y = 2 asin sqrt((1 - y)/2) >= sqrt(2 (1 - y)) and tan t >= t,
+      so tan(theta) >= scale sqrt(2 (1 - y)) at y = y_lo clipped to [0, 1]: contact is
+      impossible when 2 scale² (1 - y_lo) s_hi² > x_hi².
 
     The relative margins 1e-9 keep the tests on the safe side of round-off.
     """
-    sh2 = shear_ph * shear_ph
-    by_angle = ~(-x > shear_ph * tan_max * (1.0 + 1e-9))
-    by_own = (y <= 0.0) | ((y < 1.0) & ~(scale * scale * (1.0 - y * y) * sh2 * (1.0 + 1e-9) < x * x * y * y))
-    yc = 0.0 if y < 0.0 else (1.0 if y > 1.0 else y)
-    lifted = (shear_ph < 0.0) & (2.0 * scale * scale * (1.0 - yc) * sh2 > x * x * (1.0 + 1e-9))
-    return ((x > 0.0) & ~lifted) | ((shear_ph > 0.0) & by_angle & by_own)
+    sh2 = s_hi * s_hi
+    by_angle = ~(-x_hi > s_hi * tan_max * (1.0 + 1e-9))
+    by_own = (y_hi <= 0.0) | ((y_hi < 1.0) & ~(scale * scale * (1.0 - y_hi * y_hi) * sh2 * (1.0 + 1e-9)
+                                              < x_hi * x_hi * y_hi * y_hi))
+    yc = 0.0 if y_lo < 0.0 else (1.0 if y_lo > 1.0 else y_lo)
+    lifted = (s_hi < 0.0) & (2.0 * scale * scale * (1.0 - yc) * sh2 > x_hi * x_hi * (1.0 + 1e-9))
+    return ((x_hi > 0.0) & ~lifted) | ((s_hi > 0.0) & by_angle & by_own)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def may_touch_follow(x, shear_ph, y, scale, tan_max):
+    """False when the asperity cannot touch at one displacement under policy follow (no trigonometry, no branch).
+
+    :func:`may_touch_within` for a box that is a point: ``x`` = Delta_1 - r, ``shear_ph`` =
+    cos(phi) Delta_2 + sin(phi) Delta_3, ``y`` = cos(theta_m(c, R_j)) = 1 - k_e c / R_j,
+    ``scale`` = 2 u_j / pi, so theta = scale theta_m in [0, pi/2].
+    """
+    return may_touch_within(x, shear_ph, y, y, scale, tan_max)
 
 
 @numba.njit(cache=True)
@@ -659,25 +673,52 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
 
 
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
-               partial, spans):
+               partial, spans, index, listed, n_listed, box, n_box, tan_box):
     """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
 
     They take their follow angle (SPEC §3) and start from no history; committed contacts are
     skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
     ``spans`` (chunks, 2): per chunk, the asperities [first, last] + 1 found touching ((0, 0) if
     none), so that a commit at this displacement looks only there (:func:`find_fresh`).
+
+    ``index`` 0: every asperity below n_active is tested.  1: the same, and every asperity
+    below ``n_box`` that may touch somewhere in ``box`` (2, 3; :func:`may_touch_within`, with
+    ``tan_box`` the angle bound there), committed or not, is listed in ``listed``: chunk ic's
+    from position ic CHUNK on, in order, their count in ``n_listed[ic]``.  2: only the listed
+    asperities are tested (the caller checked that the box holds delta).  The same asperities
+    touch in the same order, so the sums have the same bits whatever the index.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
+    c_lo, _ = closure_and_slope(r_o, box[0, 0])
+    c_hi, _ = closure_and_slope(r_o, box[1, 0])
     n_chunks = (n_active + CHUNK - 1) // CHUNK
-    stride = chunk_stride(n_chunks)
-    for kk in numba.prange(n_chunks):
-        ic = (kk * stride) % n_chunks
+    n_scan = (n_box + CHUNK - 1) // CHUNK if index == 1 else n_chunks
+    stride = chunk_stride(n_scan)
+    for kk in numba.prange(n_scan):
+        ic = (kk * stride) % n_scan
+        lo = ic * CHUNK
+        hi = min(n_active, lo + CHUNK)
         acc = np.zeros(N_ACC)
         first, last = n_active, -1
-        for j in range(ic * CHUNK, min(n_active, (ic + 1) * CHUNK)):
-            if flag[j]:
+        if index == 2:
+            n_it = n_listed[ic]
+        else:
+            n_it = min(n_box if index == 1 else n_active, lo + CHUNK) - lo
+        m = 0
+        for t in range(n_it):
+            j = listed[lo + t] if index == 2 else lo + t
+            if index == 1:
+                cp, sp = cos_phi[j], sin_phi[j]
+                s_hi = max(cp * box[0, 1], cp * box[1, 1]) + max(sp * box[0, 2], sp * box[1, 2])
+                inv_R = 1.0 / R[j]
+                if not may_touch_within(box[1, 0] - r[j], s_hi, 1.0 - k_e * c_lo * inv_R, 1.0 - k_e * c_hi * inv_R,
+                                        u[j] * (2.0 / math.pi), tan_box):
+                    continue
+                listed[lo + m] = j
+                m += 1
+            if j >= hi or flag[j]:
                 continue
             cp, sp = cos_phi[j], sin_phi[j]
             x = d1 - r[j]
@@ -697,8 +738,11 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c, dn_ref, R[j], consts, arrays, 0, True), ds, rho,
                        th1)
             acc[I_TH] += th
-        partial[ic, :] = acc
-        spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
+        if index == 1:
+            n_listed[ic] = m
+        if ic < n_chunks:
+            partial[ic, :] = acc
+            spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
 
 
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
@@ -998,14 +1042,25 @@ class Workspace:
     """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
 
     A history law's trial also leaves here where its fresh contacts are (``spans``) and the
-    displacement and committed state it was made at (``fresh_key``), for a commit there.
+    displacement and committed state it was made at (``fresh_key``), for a commit there, and
+    keeps an index of the asperities that may touch in a box of displacements around the
+    path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests only those.
+    ``index=False`` turns the index off (every trial tests every asperity that can touch).
     """
 
-    def __init__(self, n):
+    AHEAD = 8  # the index box reaches this many times the step from the committed displacement
+
+    def __init__(self, n, index=True):
         n_chunks = (n + CHUNK - 1) // CHUNK
         self.partial = np.zeros((n_chunks, N_ACC))
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
         self.fresh_key = None
+        self.index = bool(index)
+        self.listed = self.n_listed = None  # allocated by the first history-law trial
+        self.box = np.zeros((2, 3))
+        self.box_pop = None  # the population the listed asperities belong to; None: no valid list
+        self.n_box, self.tan_box = 0, 0.0
+        self.trials_by_index = [0, 0, 0]  # trials that tested every asperity, built the list, used it
 
     @staticmethod
     def trial_key(delta, state):
@@ -1016,6 +1071,37 @@ class Workspace:
         """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
         return self.spans if self.fresh_key == self.trial_key(delta, state) else _EMPTY_SPANS
 
+    def fresh_index(self, pop, d, delta_c, n_active):
+        """How a history-law trial at ``d`` finds its fresh contacts: ``index`` of :func:`fresh_pass` (0, 1, 2).
+
+        2 when the listed asperities were built for ``pop`` in a box that holds ``d``.  Else 1:
+        a new box, from the committed displacement ``delta_c`` to AHEAD steps d - delta_c
+        beyond it, widened by the largest component of the step in every direction (Newton
+        corrections, a turning path), with its own bounds (:func:`bounds` at the box corner of
+        largest closure and shear).  0 without an index, or for a trial at ``delta_c``.
+        """
+        if not self.index:
+            return 0
+        if self.listed is None or self.listed.size < pop.n:
+            self.listed = np.empty(self.spans.shape[0] * CHUNK, dtype=np.int32)
+            self.n_listed = np.zeros(self.spans.shape[0], dtype=np.int64)
+            self.box_pop = None
+        if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
+                and np.all(d <= self.box[1])):
+            return 2
+        step = d - delta_c
+        pad = np.abs(step).max()
+        if not pad > 0.0:
+            return 0
+        ahead = delta_c + self.AHEAD * step
+        self.box[0] = np.minimum(delta_c, ahead) - pad
+        self.box[1] = np.maximum(delta_c, ahead) + pad
+        corner = np.array([self.box[1, 0], np.abs(self.box[:, 1]).max(), np.abs(self.box[:, 2]).max()])
+        r_o, k_e, _, _, _, beta, _ = pop.kernel_constants
+        self.n_box, self.tan_box = bounds(pop.r, pop.R_min, r_o, k_e, beta, corner, _EMPTY)
+        self.box_pop = None  # until the list is written
+        return 1
+
     def rows(self, m):
         """At least m rows of partial sums (grown when a history law has more slot chunks)."""
         if self.partial.shape[0] < m:
@@ -1025,6 +1111,8 @@ class Workspace:
 
 _EMPTY = np.empty(0)
 _EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
+_EMPTY_INDEX = np.zeros(0, dtype=np.int32)
+_EMPTY_COUNTS = np.zeros(0, dtype=np.int64)
 
 
 def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None, state=None) -> Evaluation:
@@ -1089,8 +1177,14 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
         n_slot = (state.n_slots + CHUNK - 1) // CHUNK
         partial = workspace.rows(n_pop + n_slot)
         workspace.fresh_key = None
+        index = workspace.fresh_index(pop, d, state.delta_c, n_active)
+        listed, n_listed = (workspace.listed, workspace.n_listed) if index else (_EMPTY_INDEX, _EMPTY_COUNTS)
         kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
-                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans)
+                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans,
+                           index, listed, n_listed, workspace.box, workspace.n_box, workspace.tan_box)
+        workspace.trials_by_index[index] += 1
+        if index == 1:
+            workspace.box_pop = pop
         workspace.fresh_key = workspace.trial_key(d, state)
         if n_slot:
             kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,

@@ -9,7 +9,7 @@ import pytest
 
 from asperity_sim import Population, presets, reference
 from asperity_sim.assemble import (Workspace, birth_angles, evaluate, evaluate_steps, evaluation_from,
-                                   may_touch_follow, snapshot)
+                                   may_touch_follow, may_touch_within, snapshot)
 
 um = 1e-6
 R1, S1 = presets.R1, presets.S1
@@ -143,6 +143,76 @@ def test_touch_screen_never_drops_a_contact_and_drops_lifted_asperities():
     assert not np.any(~keep & (dn > 0.0))
     lifted = (x > 0.0) & (shear < 0.0) & (dn < -1e-3 * x)
     assert lifted.sum() > 1000 and (~keep[lifted]).mean() > 0.5
+
+
+def test_box_screen_never_drops_a_contact_anywhere_in_its_box():
+    """may_touch_within over a box of displacements is False only where the exact overlap (follow angle at
+    the closure max(0, r_o + Delta_1), libm) is <= 0 at every displacement of the box: checked at random
+    points of random boxes, half of them placed at the root of the overlap.  Boxes that are points give
+    may_touch_follow; far from contact most asperities are dropped."""
+    may_touch = numba.njit(lambda x, s, ylo, yhi, sc, t: may_touch_within(x, s, ylo, yhi, sc, t))
+    rng = np.random.default_rng(11)
+    n, r_o, k_e = 100_000, 1.0, 1.3
+    R = 10.0 ** rng.uniform(-0.5, 1.0, n)
+    scale = rng.random(n)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    cp, sp = np.cos(phi), np.sin(phi)
+    centre = rng.normal(0.0, 1.0, (n, 3)) * np.array([1.0, 2.0, 2.0])
+    half = np.abs(rng.normal(0.0, 1.0, (n, 3))) * 10.0 ** rng.uniform(-4, 0, (n, 1))
+    half[rng.random(n) < 0.1] = 0.0  # points
+    lo, hi = centre - half, centre + half
+    d = lo + rng.random((n, 3)) * (hi - lo)
+    corner = rng.random(n) < 0.2
+    d[corner] = hi[corner]  # the corner of largest Delta_1 and shear (for cos, sin phi > 0)
+
+    def theta(d1):
+        return scale * np.arccos(np.clip(1.0 - k_e * np.maximum(0.0, r_o + d1) / R, 0.0, 1.0))
+
+    th = theta(d[:, 0])
+    shear = cp * d[:, 1] + sp * d[:, 2]
+    eps = rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-15, -1, n)
+    x = np.where(rng.random(n) < 0.5, (eps - np.sin(th) * shear) / np.maximum(np.cos(th), 1e-300),
+                 rng.normal(0.0, 3.0, n))
+    r = d[:, 0] - x
+    x = d[:, 0] - r  # as the kernels see it
+    dn = np.cos(th) * x + np.sin(th) * shear
+    s_hi = np.maximum(cp * lo[:, 1], cp * hi[:, 1]) + np.maximum(sp * lo[:, 2], sp * hi[:, 2])
+    y = [1.0 - k_e * np.maximum(0.0, r_o + e) / R for e in (lo[:, 0], hi[:, 0])]
+    keep = np.array([may_touch(*a, np.inf) for a in zip(hi[:, 0] - r, s_hi, y[0], y[1], scale)])
+    assert np.count_nonzero(dn > 0.0) > 10_000
+    assert not np.any(~keep & (dn > 0.0))
+    far = x < -1.0  # well above the closure
+    assert (~keep[far]).mean() > 0.5
+    point = np.all(half == 0.0, axis=1)
+    follow = numba.njit(lambda x, s, y, sc, t: may_touch_follow(x, s, y, sc, t))
+    same = [follow(a, b, c, e, np.inf) for a, b, c, e in zip((hi[:, 0] - r)[point], s_hi[point], y[1][point],
+                                                            scale[point])]
+    assert np.array_equal(same, keep[point])
+
+
+def test_fresh_contact_index_gives_the_bits_of_a_full_search():
+    """A history-law trial that tests only the asperities listed for a box (Workspace index) finds the same
+    fresh contacts, in the same order, as one that tests every asperity: equal results at every trial of
+    a path that loads, shears, turns back and unloads, with the index built more than once and used."""
+    from asperity_sim.state import ContactState
+
+    pop = Population.sample(R1, 20_000, seed=5)
+    listed, full = Workspace(pop.n), Workspace(pop.n, index=False)
+    a, b = ContactState(pop, "mdr", k=8), ContactState(pop, "mdr", k=8)
+    path = [np.array([x, y, 0.3 * y]) * um for x, y in
+            [(2, 0), (4, 0), (6, 0), (6, 1), (6.1, 2), (6.2, 3), (6.2, 4), (6.1, 3), (6, 1), (6, -1), (5, -2), (3, -2)]]
+    for dc in path:
+        for frac in (1.0, 0.97, 1.0):  # a predictor, a correction and the converged trial, as Newton makes them
+            d = a.delta_c + frac * (dc - a.delta_c)
+            e1, e2 = evaluate(pop, d, law="mdr", state=a, workspace=listed), evaluate(pop, d, law="mdr", state=b,
+                                                                                      workspace=full)
+            assert np.array_equal(e1.stress, e2.stress) and np.array_equal(e1.tangent, e2.tangent)
+            assert e1.n_contact == e2.n_contact
+        a.commit(d, workspace=listed)
+        b.commit(d, workspace=full)
+        assert np.array_equal(a.asp[:a.n_slots], b.asp[:b.n_slots])
+    assert listed.trials_by_index[1] >= 2 and listed.trials_by_index[2] >= 10
+    assert full.trials_by_index == [3 * len(path), 0, 0]
 
 
 @pytest.mark.statistical
