@@ -324,6 +324,9 @@ N_IN = 5
 # sin phi, R, u), then delta_n, delta_s, the local increment (normal, s, t), cos/sin theta, theta, d theta/d Delta_1
 G_X, G_CP, G_SP, G_R, G_U, G_DN, G_DS, G_RHO, G_DDS, G_DDT, G_CT, G_ST, G_TH, G_TH1 = range(14)
 N_GEO = 14
+# what a commit needs of that geometry, left by the trial per slot: delta_n, the increment (s, t), R
+SLOT_GEO_ROWS = (G_DN, G_DDS, G_DDT, G_R)
+N_SLOT_GEO = len(SLOT_GEO_ROWS)
 
 
 @numba.njit(cache=True, inline="always")
@@ -601,12 +604,14 @@ def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_bir
 # ---- history laws: committed contacts live in slots (asp[sl] = asperity index, -1 a free slot) ----
 
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-              theta_birth, partial):
+              theta_birth, partial, slot_geo):
     """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only).
 
     Under policy follow, per block of BLOCK slots: their inputs gathered contiguous, their
     geometry in a loop that LLVM vectorises (:func:`slot_geometry`), the law's trial per contact,
-    then their global force and tangent in a vectorised loop and the sums in slot order.
+    then their global force and tangent in a vectorised loop and the sums in slot order.  The
+    geometry the law needs (delta_n, the increment, R) is left in ``slot_geo`` (N_SLOT_GEO, >=
+    n_slots), for a commit at this displacement (:func:`commit_slots`).
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
@@ -644,6 +649,9 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
             gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
             for i in range(m):  # vectorised
                 slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
+            for a in range(N_SLOT_GEO):
+                for i in range(m):
+                    slot_geo[a, b0 + i] = geo[SLOT_GEO_ROWS[a], i]
             trial_block(geo[G_DN], geo[G_DDS], geo[G_DDT], geo[G_R], dn_c, b0, m, consts, arrays, out)  # the law
             for i in range(m):  # vectorised
                 slot_values(vals, i, geo, out)
@@ -746,16 +754,19 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
 
 
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-                 theta_birth, n_store, partial):
+                 theta_birth, n_store, partial, slot_geo):
     """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
 
     A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
-    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`.
+    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`, or
+    read from ``slot_geo`` when a trial at ``delta`` on this committed state left it there (not
+    empty; the same bits).
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
+    known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
     for kk in numba.prange(n_chunks):
@@ -781,6 +792,10 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                     geo[G_DN, i], _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
                     _, geo[G_DDS, i], geo[G_DDT, i] = local_displacement(D0, D1, D2, ct, st, cp, sp)
                     geo[G_R, i] = R[j]
+            elif known:
+                for a in range(N_SLOT_GEO):
+                    for i in range(m):
+                        geo[SLOT_GEO_ROWS[a], i] = slot_geo[a, b0 + i]
             else:
                 gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
                 for i in range(m):  # vectorised
@@ -1041,9 +1056,9 @@ def check_choice(name, value, valid):
 class Workspace:
     """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
 
-    A history law's trial also leaves here where its fresh contacts are (``spans``) and the
-    displacement and committed state it was made at (``fresh_key``), for a commit there, and
-    keeps an index of the asperities that may touch in a box of displacements around the
+    A history law's trial also leaves here where its fresh contacts are (``spans``), the
+    geometry of its committed contacts (``slot_geo``, policy follow) and the displacement and
+    committed state it was made at (``fresh_key``), for a commit there, and keeps an index of the asperities that may touch in a box of displacements around the
     path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests only those.
     ``index=False`` turns the index off (every trial tests every asperity that can touch).
     """
@@ -1055,6 +1070,7 @@ class Workspace:
         self.partial = np.zeros((n_chunks, N_ACC))
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
         self.fresh_key = None
+        self.slot_geo = np.zeros((N_SLOT_GEO, 0))
         self.index = bool(index)
         self.listed = self.n_listed = None  # allocated by the first history-law trial
         self.box = np.zeros((2, 3))
@@ -1070,6 +1086,18 @@ class Workspace:
     def fresh_spans(self, delta, state):
         """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
         return self.spans if self.fresh_key == self.trial_key(delta, state) else _EMPTY_SPANS
+
+    def slot_geometry(self, delta, state):
+        """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
+        if self.fresh_key != self.trial_key(delta, state) or state.theta_birth is not None:
+            return _EMPTY_SLOT_GEO
+        return self.slot_geo
+
+    def slot_rows(self, n_slots):
+        """The slot geometry array, grown (by a quarter beyond the need) to hold ``n_slots`` slots."""
+        if self.slot_geo.shape[1] < n_slots:
+            self.slot_geo = np.zeros((N_SLOT_GEO, n_slots + n_slots // 4 + BLOCK))
+        return self.slot_geo
 
     def fresh_index(self, pop, d, delta_c, n_active):
         """How a history-law trial at ``d`` finds its fresh contacts: ``index`` of :func:`fresh_pass` (0, 1, 2).
@@ -1112,6 +1140,7 @@ class Workspace:
 _EMPTY = np.empty(0)
 _EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
 _EMPTY_INDEX = np.zeros(0, dtype=np.int32)
+_EMPTY_SLOT_GEO = np.zeros((N_SLOT_GEO, 0))
 _EMPTY_COUNTS = np.zeros(0, dtype=np.int64)
 
 
@@ -1185,10 +1214,11 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
         workspace.trials_by_index[index] += 1
         if index == 1:
             workspace.box_pop = pop
-        workspace.fresh_key = workspace.trial_key(d, state)
         if n_slot:
             kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
-                              state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:])
+                              state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
+                              workspace.slot_rows(state.n_slots))
+        workspace.fresh_key = workspace.trial_key(d, state)
         n_rows = n_pop + n_slot
     finish(workspace.partial, n_rows, pop.n, scale, out)
     out[O_NA] = n_active

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import laws
-from .assemble import (C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, _EMPTY, _EMPTY_SPANS, assign_slots,
-                       birth_angles, bounds, find_fresh, kernels)
+from .assemble import (C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, _EMPTY, _EMPTY_SLOT_GEO,
+                       _EMPTY_SPANS, assign_slots, birth_angles, bounds, find_fresh, kernels)
 
 SPRING_DTYPES = ("float64", "float32")
 K_MAX = 4096
@@ -122,7 +122,8 @@ class ContactState:
         if self.has_history:
             n_active_h, tan_max = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, _EMPTY)
             spans = _EMPTY_SPANS if workspace is None else workspace.fresh_spans(delta, self)
-            result = self._commit_history(delta, n_active_h, tan_max, tb, spans)
+            geo = _EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
+            result = self._commit_history(delta, n_active_h, tan_max, tb, spans, geo)
             self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:
@@ -132,7 +133,7 @@ class ContactState:
         self.delta_c = delta.copy()
         return result
 
-    def _commit_history(self, delta, n_active, tan_max, tb, spans) -> CommitResult:
+    def _commit_history(self, delta, n_active, tan_max, tb, spans, geo) -> CommitResult:
         pop, p = self.pop, self.pop.params
         kern = kernels(self.law)
         n_slot_chunks = (self.n_slots + CHUNK - 1) // CHUNK
@@ -145,7 +146,7 @@ class ContactState:
         if self.n_slots:
             kern["commit_slots"](self.asp, self.n_slots, self.dn_c, self.code, self.flag, pop.r, pop.R, pop.u,
                                  pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays,
-                                 tb, self.n_stored, self._partial)
+                                 tb, self.n_stored, self._partial, geo)
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
         find_fresh(self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e,
