@@ -22,8 +22,10 @@ something timed in the same process, because absolute times drift on a shared ma
    and the largest stress difference to float64 along the path, relative to the largest stress.
 5. **Scaling**: the shear increment at n / 10 asperities (mdr), as the ratio of the two.
 
-With ``--scale`` it also runs (each in a fresh process) the 10 000 000-asperity, 300-increment
-mdr path and the same path with the paper law: wall time and peak resident memory, against
+With ``--scale`` it also runs (each in a fresh process) the trial, commit and probe of 2. and 3.
+at n = 10 000 000 (about 0.7 GB of springs in contact: they stream from memory, where at n =
+500 000 they stay in the shared cache), the 10 000 000-asperity, 300-increment mdr path and
+the same path with the paper law: wall time and peak resident memory, against
 the paper law's peak plus the bytes of the springs (target: <= 1.1 x), and the 570-increment
 cyclic path at 1 000 000 asperities (target: under a minute).
 
@@ -164,6 +166,32 @@ def rebuild_state(pop, path, k, dtype):
     return state, ds
 
 
+def end_state_timings(pop, path, k, repeat):
+    """Trial, commit and streaming probe at the end state of ``path`` (mdr, float64 springs): times [s] and ratios."""
+    state, _ = rebuild_state(pop, path, k, "float64")
+    ws = Workspace(pop.n)
+    d = state.delta_c + np.array([1e-3, 2e-3, 0.0]) * UM
+    evaluate_unchecked(pop, d, state, ws)
+    trial_med, trial_all, commit_med = trial_and_commit(pop, state, d, ws, repeat)
+    start = state.state_arrays()
+    full = []
+    for _ in range(repeat):  # the same commit searching every asperity for new contacts
+        state.restore(start)
+        t = time.perf_counter()
+        state.commit(d)
+        full.append(time.perf_counter() - t)
+    state.restore(start)
+    m = springs_in_contact(state)
+    probe = np.ones(2 * m)  # the spring bytes in contact, float64
+    _stream(probe)
+    probe_med, _ = best_of(lambda: _stream(probe), repeat)
+    return dict(springs_in_contact=m, spring_bytes_in_contact=int(probe.nbytes), trial_s=trial_med,
+                trial_testing_all_s=trial_all, commit_s=commit_med, commit_full_search_s=float(np.median(full)),
+                probe_s=probe_med, trial_over_probe_speed=probe_med / trial_med,
+                commit_over_trial=commit_med / trial_med, state_bytes=state.nbytes, population_bytes=pop.nbytes,
+                contacts_at_trial=state.n_contacts)
+
+
 def measure(n, k, repeat, rounds=3):
     pop = Population.sample(presets.R1, n, seed=1)
     path = cns_path()
@@ -190,29 +218,7 @@ def measure(n, k, repeat, rounds=3):
                contacts=int(ds_m.n_contact.values[-1]),
                run_trials_testing_all=by_index[0], run_trials_building_list=by_index[1],
                run_trials_using_list=by_index[2])
-    # trial, commit and the streaming probe at the end state
-    state, _ = rebuild_state(pop, path, k, "float64")
-    ws = Workspace(pop.n)
-    d = state.delta_c + np.array([1e-3, 2e-3, 0.0]) * UM
-    evaluate_unchecked(pop, d, state, ws)
-    trial_med, trial_all, commit_med = trial_and_commit(pop, state, d, ws, repeat)
-    start = state.state_arrays()
-    full = []
-    for _ in range(repeat):  # the same commit searching every asperity for new contacts
-        state.restore(start)
-        t = time.perf_counter()
-        state.commit(d)
-        full.append(time.perf_counter() - t)
-    state.restore(start)
-    full_med = float(np.median(full))
-    m = springs_in_contact(state)
-    probe = np.ones(2 * m)  # the spring bytes in contact, float64
-    _stream(probe)
-    probe_med, probe_min = best_of(lambda: _stream(probe), repeat)
-    out.update(springs_in_contact=m, spring_bytes_in_contact=int(probe.nbytes),
-               trial_s=trial_med, trial_testing_all_s=trial_all, commit_s=commit_med, commit_full_search_s=full_med, probe_s=probe_med,
-               trial_over_probe_speed=probe_med / trial_med, commit_over_trial=commit_med / trial_med,
-               state_bytes=state.nbytes, population_bytes=pop.nbytes)
+    out.update(end_state_timings(pop, path, k, repeat))
     # scaling: the same path at n / 10
     small = Population.sample(presets.R1, n // 10, seed=1)
     _, t_small = timed_run(small, path, law="mdr", k=k)
@@ -248,8 +254,14 @@ print(json.dumps(out))
 """
 
 
-def scale_runs():
+def scale_runs(k):
     res = {}
+    t = time.perf_counter()  # the trial against the probe where the springs stream from memory
+    p = subprocess.run([sys.executable, __file__, "--trial-only", "--n", "10000000", "--k", str(k), "--repeat", "7"],
+                       capture_output=True, text=True)
+    res["trial_10000000"] = json.loads(p.stdout.strip().splitlines()[-1]) if not p.returncode else {
+        "error": p.stderr[-2000:]}
+    print(f"  mdr trial at n=10000000: {time.perf_counter() - t:.0f} s", flush=True)
     for n, law, which in ((10_000_000, "paper", "long"), (10_000_000, "mdr", "long"), (1_000_000, "mdr", "cyclic")):
         t = time.perf_counter()
         p = subprocess.run([sys.executable, "-c", SCALE, str(n), law, which], capture_output=True, text=True)
@@ -268,7 +280,14 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--rounds", type=int, default=3, help="alternating paper/mdr runs; medians are reported")
     ap.add_argument("--scale", action="store_true", help="also the 10M-asperity and 1M cyclic runs (~10 min)")
+    ap.add_argument("--trial-only", action="store_true",
+                    help="only the trial, commit and probe at the end state of n asperities (JSON on stdout)")
     args = ap.parse_args(argv)
+    if args.trial_only:
+        pop = Population.sample(presets.R1, args.n, seed=1)
+        r = end_state_timings(pop, cns_path(), args.k, args.repeat)
+        print(json.dumps(dict(r, n=args.n, k=args.k)))
+        return
     t0 = time.perf_counter()
     out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
                        "numba": numba.__version__, "load_start": os.getloadavg()[0]}}
@@ -289,7 +308,7 @@ def main(argv=None):
     print(f"peak sigma2/sigma1 mdr / paper = {r['peak_ratio_mdr_over_paper']:.4f}")
     print(f"scaling: mdr increment at n / n/10 = {r['scaling_n_over_n10']:.1f}")
     if args.scale:
-        out["scale"] = s = scale_runs()
+        out["scale"] = s = scale_runs(args.k)
         p, m = s.get("paper_long_10000000", {}), s.get("mdr_long_10000000", {})
         if "peak_rss" in p and "peak_rss" in m:
             k2 = 2 * args.k
@@ -298,6 +317,11 @@ def main(argv=None):
             print(f"10M x 300 increments: mdr {m['run_s']:.0f} s (target < 300), paper {p['run_s']:.0f} s; peak RSS "
                   f"mdr {m['peak_rss'] / 2**30:.2f} GiB, paper {p['peak_rss'] / 2**30:.2f} GiB + springs "
                   f"{springs / 2**30:.2f} GiB -> ratio {s['memory_ratio']:.2f} (target <= 1.1)")
+        b = s.get("trial_10000000", {})
+        if "trial_s" in b:
+            print(f"n = 10 000 000 end state ({b['spring_bytes_in_contact'] / 1e6:.0f} MB of springs in contact): trial "
+                  f"{1e3 * b['trial_s']:.0f} ms, probe {1e3 * b['probe_s']:.0f} ms -> {b['trial_over_probe_speed']:.2f} "
+                  f"of streaming speed; commit / trial {b['commit_over_trial']:.2f}")
         c = s.get("mdr_cyclic_1000000", {})
         if "run_s" in c:
             print(f"1M cyclic, {c['increments']} increments: {c['run_s']:.1f} s (target < 60)")
