@@ -47,9 +47,11 @@ import numpy as np
 
 from . import FULL_SLIP, PARTIAL, STICK, History, Law, register
 from ..geometry import fsqrt
+from ..prefetch import prefetch
 from .hertz import hertz, hertz_energy, hertz_energy_roots, hertz_roots
 
 FLOOR_FRACTION = 1e-5  # dn_floor / ((alpha + 1) beta)
+AHEAD = 4  # a block kernel asks for the springs of the contact this many slots ahead (asperity_sim.prefetch)
 
 
 @numba.njit(cache=True, inline="always")
@@ -476,6 +478,17 @@ def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     return (f_n, Fs, Ft, k_n, 0.0, 0.0, J10, J11, J12, J20, J21, J22, float(state_code(n_springs, n_slip)))
 
 
+@numba.njit(cache=True, inline="always")
+def prefetch_springs(w_all, sl, n):
+    """Ask for the cache lines of the first n springs (both components) of slot ``sl``, to be read soon."""
+    per_line = max(1, 64 // w_all.itemsize)
+    last = min(n, w_all.shape[2]) - 1
+    for a in range(2):
+        for i in range(0, last, per_line):
+            prefetch(w_all, sl, a, i)
+        prefetch(w_all, sl, a, max(last, 0))
+
+
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
 def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """:func:`mdr_trial` of the committed contacts in slots b0 .. b0 + m (dn[i] > 0; zeros in ``out`` elsewhere).
@@ -494,6 +507,8 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
             x, dn_c[b0 + i] if touch else 0.5, R[i], h, E_star, lam)
         sc[i, 4], sc[i, 7] = n_in, n_c
     for i in range(m):
+        if i + AHEAD < m:  # springs in contact, and those entering, of the contact AHEAD slots on
+            prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, 4]), int(sc[i + AHEAD, 7])) + LANES)
         if dn[i] <= 0.0:
             for a in range(13):
                 out[a, i] = 0.0
@@ -586,6 +601,8 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
             x, xc, R[i], h, E_star, lam)
         sc[i, 2], sc[i, 5] = n_in, n_c
     for i in range(m):
+        if i + AHEAD < m:
+            prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, 2]), int(sc[i + AHEAD, 5])) + LANES)
         if not live[i]:
             continue
         sl = b0 + i
