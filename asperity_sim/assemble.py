@@ -18,10 +18,13 @@ any trigonometry.
   workloads run on the calling thread (``reduce_serial``, also for a batch of displacements).
   Policy birth: a scalar loop with the frozen angles (``chunk_birth``).
 - A history law: one pass over the committed contacts (their slots, streamed in slot order,
-  ``slot_pass``) and one pass over the population for contacts that are new in this trial
-  (``fresh_pass``, which skips committed contacts by their flag).  Nothing is paid for an
-  asperity out of contact beyond the cheap test; the commit (:mod:`asperity_sim.state`) makes
-  the same two passes, writing.
+  ``slot_pass``) and one for contacts that are new in this trial (``fresh_pass``, which skips
+  committed contacts by their flag).  The second tests only the asperities that the
+  :class:`Workspace` lists as able to touch somewhere in a box of displacements around the
+  path (:func:`may_touch_within`; the list is made by the first trial outside the box), so an
+  asperity out of reach costs nothing per trial.  The commit (:mod:`asperity_sim.state`)
+  makes the same two passes, writing, and takes from the workspace what the trial at its
+  displacement found: where the new contacts are and the geometry of the committed ones.
 
 Each law gets its own compiled copy of these kernels (:func:`kernels`,
 :func:`asperity_sim.laws.specialise`).  No fastmath anywhere: vector and scalar code give the
