@@ -1059,11 +1059,12 @@ def check_choice(name, value, valid):
 class Workspace:
     """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
 
-    A history law's trial also leaves here where its fresh contacts are (``spans``), the
-    geometry of its committed contacts (``slot_geo``, policy follow) and the displacement and
-    committed state it was made at (``fresh_key``), for a commit there, and keeps an index of the asperities that may touch in a box of displacements around the
-    path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests only those.
-    ``index=False`` turns the index off (every trial tests every asperity that can touch).
+    A history law's trial also leaves here, for a commit at its displacement, where its fresh
+    contacts are (``spans``), the geometry of its committed contacts (``slot_geo``, policy
+    follow) and the displacement and committed state it was made at (``fresh_key``).  The
+    workspace also keeps an index of the asperities that may touch in a box of displacements
+    around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
+    only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
     """
 
     AHEAD = 8  # the index box reaches this many times the step from the committed displacement
