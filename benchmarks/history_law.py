@@ -30,7 +30,7 @@ the paper law's peak plus the bytes of the springs (target: <= 1.1 x), and the 5
 cyclic path at 1 000 000 asperities (target: under a minute).
 
 Run:   python benchmarks/history_law.py [--n 500000] [--scale]
-Writes outputs/history_law.json and prints a table.  About 2 minutes; --scale adds about 10.
+Writes outputs/history_law.json and prints a table.  About 1 minute; --scale adds about 4 (2026-11-27).
 """
 
 from __future__ import annotations
@@ -279,7 +279,8 @@ def main(argv=None):
     ap.add_argument("--k", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--rounds", type=int, default=3, help="alternating paper/mdr runs; medians are reported")
-    ap.add_argument("--scale", action="store_true", help="also the 10M-asperity and 1M cyclic runs (~10 min)")
+    ap.add_argument("--scale", action="store_true",
+                    help="also the trial at n = 10M, the 10M-asperity runs and the 1M cyclic run (~4 min)")
     ap.add_argument("--trial-only", action="store_true",
                     help="only the trial, commit and probe at the end state of n asperities (JSON on stdout)")
     args = ap.parse_args(argv)
