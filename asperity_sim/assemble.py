@@ -1087,15 +1087,17 @@ class Workspace:
         """What identifies a trial: the bits of its displacement and the committed state it was made on."""
         return np.asarray(delta, dtype=float).tobytes(), id(state), state.serial
 
+    def made_at(self, delta, state):
+        """True if the last trial was made at ``delta`` on the committed state ``state``."""
+        return self.fresh_key == self.trial_key(delta, state)
+
     def fresh_spans(self, delta, state):
         """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
-        return self.spans if self.fresh_key == self.trial_key(delta, state) else _EMPTY_SPANS
+        return self.spans if self.made_at(delta, state) else _EMPTY_SPANS
 
     def slot_geometry(self, delta, state):
         """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
-        if self.fresh_key != self.trial_key(delta, state) or state.theta_birth is not None:
-            return _EMPTY_SLOT_GEO
-        return self.slot_geo
+        return self.slot_geo if self.made_at(delta, state) and state.theta_birth is None else _EMPTY_SLOT_GEO
 
     def slot_rows(self, n_slots):
         """The slot geometry array, grown (by a quarter beyond the need) to hold ``n_slots`` slots."""

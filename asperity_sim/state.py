@@ -113,7 +113,7 @@ class ContactState:
         (asperities below the height bound, from the trial) is recomputed when not given.
         ``workspace``: the :class:`~asperity_sim.assemble.Workspace` of the trials; if the last
         one was made at ``delta``, the search for contacts born in this increment looks only
-        where it found them.
+        where it found them, and the geometry of the committed contacts is the one it left.
         """
         pop, p = self.pop, self.pop.params
         delta = np.asarray(delta, dtype=float)

@@ -489,6 +489,28 @@ def prefetch_springs(w_all, sl, n):
         prefetch(w_all, sl, a, max(last, 0))
 
 
+# columns of a block's table of contact scales (:func:`scales_into`)
+S_C, S_Q, S_FN, S_KN, S_NIN, S_RHO, S_DRHO, S_NC, S_E, S_EC = range(10)
+N_SCALES = 10
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def scales_into(sc, i, go, dn, dn_c, R, h, E_star, lam):
+    """Row i of a block's table ``sc``: :func:`contact_scales` of a contact in contact (``go``), else of any
+    contact (finite values, discarded).  Branch-free, so that the loop over a block vectorises."""
+    x, xc, hh = (dn, dn_c, h) if go else (1.0, 0.5, 1.0)
+    (sc[i, S_C], sc[i, S_Q], sc[i, S_FN], sc[i, S_KN], n_in, sc[i, S_RHO], sc[i, S_DRHO], n_c, sc[i, S_E],
+     sc[i, S_EC]) = contact_scales(x, xc, R, hh, E_star, lam)
+    sc[i, S_NIN], sc[i, S_NC] = n_in, n_c
+
+
+@numba.njit(cache=True, inline="always")
+def prefetch_ahead(w_all, sc, b0, i, m):
+    """Prefetch the springs in contact, and those entering, of the contact AHEAD rows after row i of a block."""
+    if i + AHEAD < m:
+        prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, S_NIN]), int(sc[i + AHEAD, S_NC])) + LANES)
+
+
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
 def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """:func:`mdr_trial` of the committed contacts in slots b0 .. b0 + m (dn[i] > 0; zeros in ``out`` elsewhere).
@@ -499,23 +521,18 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((m, 8))  # per contact: c, q, f_n, k_n, n_in, rho, drho, n_c
+    sc = np.empty((m, N_SCALES))
     for i in range(m):
-        touch = dn[i] > 0.0
-        x, h = (dn[i], h_all[b0 + i]) if touch else (1.0, 1.0)  # any contact: finite values, discarded
-        sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3], n_in, sc[i, 5], sc[i, 6], n_c, _, _ = contact_scales(
-            x, dn_c[b0 + i] if touch else 0.5, R[i], h, E_star, lam)
-        sc[i, 4], sc[i, 7] = n_in, n_c
+        scales_into(sc, i, dn[i] > 0.0, dn[i], dn_c[b0 + i], R[i], h_all[b0 + i], E_star, lam)
     for i in range(m):
-        if i + AHEAD < m:  # springs in contact, and those entering, of the contact AHEAD slots on
-            prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, 4]), int(sc[i + AHEAD, 7])) + LANES)
+        prefetch_ahead(w_all, sc, b0, i, m)
         if dn[i] <= 0.0:
             for a in range(13):
                 out[a, i] = 0.0
             continue
         Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n = committed_springs_scaled(
-            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[i, 0], sc[i, 1], sc[i, 2], sc[i, 3],
-            int(sc[i, 4]), sc[i, 5], sc[i, 6], int(sc[i, 7]))
+            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[i, S_C], sc[i, S_Q], sc[i, S_FN],
+            sc[i, S_KN], int(sc[i, S_NIN]), sc[i, S_RHO], sc[i, S_DRHO], int(sc[i, S_NC]))
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = f_n, Fs, Ft, k_n, 0.0, 0.0
         out[6, i], out[7, i], out[8, i], out[9, i], out[10, i], out[11, i] = J10, J11, J12, J20, J21, J22
         out[12, i] = float(state_code(n_springs, n_slip))
@@ -593,23 +610,18 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((m, 8))  # per contact: c, q, n_in, rho, drho, n_c, Hertz energy after and before
+    sc = np.empty((m, N_SCALES))
     for i in range(m):
-        go = live[i] & (dn[i] > 0.0)
-        x, xc, h = (dn[i], dn_c[b0 + i], h_all[b0 + i]) if go else (1.0, 0.5, 1.0)  # finite values, discarded
-        sc[i, 0], sc[i, 1], _, _, n_in, sc[i, 3], sc[i, 4], n_c, sc[i, 6], sc[i, 7] = contact_scales(
-            x, xc, R[i], h, E_star, lam)
-        sc[i, 2], sc[i, 5] = n_in, n_c
+        scales_into(sc, i, live[i] & (dn[i] > 0.0), dn[i], dn_c[b0 + i], R[i], h_all[b0 + i], E_star, lam)
     for i in range(m):
-        if i + AHEAD < m:
-            prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, 2]), int(sc[i + AHEAD, 5])) + LANES)
+        prefetch_ahead(w_all, sc, b0, i, m)
         if not live[i]:
             continue
         sl = b0 + i
         if dn[i] > 0.0:
             fits, code, work, stored, diss = committed_commit_scaled(
-                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, 0], sc[i, 1], int(sc[i, 2]), sc[i, 3],
-                sc[i, 4], int(sc[i, 5]), sc[i, 6], sc[i, 7])
+                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, S_C], sc[i, S_Q], int(sc[i, S_NIN]),
+                sc[i, S_RHO], sc[i, S_DRHO], int(sc[i, S_NC]), sc[i, S_E], sc[i, S_EC])
             if fits:
                 res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, 0.0
                 continue
