@@ -264,3 +264,48 @@ def test_repeated_triangle_loop_shakes_down_to_a_stable_cycle():
     assert per[3] == pytest.approx(per[2], rel=1e-3)  # stable cycle after shake-down
     F = ds.force.values[10:, 1:]
     assert np.abs(F[119] - F[179]).max() < 1e-6 * MU * F_N + 1e-3 * np.abs(F).max()
+
+
+def test_block_table_of_contact_scales_is_the_per_contact_one():
+    """``block_scales`` (the vectorised loop of the block kernels) gives, column by column, the values of
+    ``contact_scales`` for each contact in contact (to round-off: vector code may fuse other products;
+    the spring counts exactly), and finite values for a slot out of contact or free (h = 0): the
+    prefetch reads the counts of every column."""
+    from asperity_sim.laws import mdr
+
+    rng = np.random.default_rng(3)
+    m = 37  # not a whole number of vectors: the loop's remainder is covered
+    R_ = rng.uniform(1e-5, 1e-3, m)
+    dn_c = rng.uniform(1e-8, 1e-6, m)
+    dn = dn_c * rng.uniform(0.5, 1.5, m)
+    h = np.sqrt(R_ * dn_c) / 16
+    dn[[3, 10]] = -1e-7  # out of contact
+    h[[5, 20]] = 0.0  # free slots
+    dn[5] = -1e-9
+    dn[20] = 1e-7  # a free slot at a positive overlap: still finite
+    sc = np.full((mdr.N_SCALES, m), np.nan)
+    blocked = numba_block_scales()
+    blocked(sc, dn, dn_c, R_, h, m, E_STAR, LAM)
+    assert np.all(np.isfinite(sc))
+    for i in range(m):
+        if dn[i] <= 0.0 or h[i] == 0.0:
+            continue
+        expect = np.array(mdr.contact_scales(dn[i], dn_c[i], R_[i], h[i], E_STAR, LAM), dtype=float)
+        other = np.arange(mdr.N_SCALES) != mdr.S_DRHO
+        np.testing.assert_allclose(sc[other, i], expect[other], rtol=1e-13, atol=0, err_msg=str(i))
+        # d rho / d dn = rho (1.5 / dn - n / sum u): a difference, so round-off relative to its terms
+        np.testing.assert_allclose(sc[mdr.S_DRHO, i], expect[mdr.S_DRHO], rtol=0,
+                                   atol=1e-13 * abs(expect[mdr.S_RHO]) * 1.5 / dn[i], err_msg=str(i))
+        assert sc[mdr.S_NIN, i] == expect[mdr.S_NIN] and sc[mdr.S_NC, i] == expect[mdr.S_NC]
+
+
+def numba_block_scales():
+    import numba
+
+    from asperity_sim.laws import mdr
+
+    @numba.njit(error_model="numpy", fastmath=mdr.FAST)
+    def run(sc, dn, dn_c, R_, h, m, E_star, lam):
+        mdr.block_scales(sc, dn, dn_c, R_, h, m, E_star, lam)
+
+    return run

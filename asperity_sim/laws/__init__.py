@@ -110,14 +110,14 @@ class Law:
 
         numba invalidates a cached kernel only when its own file changes, not when a function it
         calls does; the hash covers the files that define the law's kernels, the shared Hertz
-        contact and the geometry, so a change in any of them compiles anew (a law whose kernels
+        contact, the geometry and the prefetch, so a change in any of them compiles anew (a law whose kernels
         call helpers from other files should keep them in its own file).
         """
         h = self.history
         funcs = [self.local] if h is None else [h.trial, h.commit, h.trial_block, h.commit_block]
         files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs if f is not None}
         here = Path(__file__).parent
-        files |= {here / "hertz.py", here.parent / "geometry.py"}
+        files |= {here / "hertz.py", here.parent / "geometry.py", here.parent / "prefetch.py"}
         h = hashlib.sha256(self.name.encode())
         for path in sorted(files):
             h.update(path.read_bytes())

@@ -489,26 +489,32 @@ def prefetch_springs(w_all, sl, n):
         prefetch(w_all, sl, a, max(last, 0))
 
 
-# columns of a block's table of contact scales (:func:`scales_into`)
+# columns of a block's table of contact scales (:func:`block_scales`)
 S_C, S_Q, S_FN, S_KN, S_NIN, S_RHO, S_DRHO, S_NC, S_E, S_EC = range(10)
 N_SCALES = 10
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def scales_into(sc, i, go, dn, dn_c, R, h, E_star, lam):
-    """Row i of a block's table ``sc``: :func:`contact_scales` of a contact in contact (``go``), else of any
-    contact (finite values, discarded).  Branch-free, so that the loop over a block vectorises."""
-    x, xc, hh = (dn, dn_c, h) if go else (1.0, 0.5, 1.0)
-    (sc[i, S_C], sc[i, S_Q], sc[i, S_FN], sc[i, S_KN], n_in, sc[i, S_RHO], sc[i, S_DRHO], n_c, sc[i, S_E],
-     sc[i, S_EC]) = contact_scales(x, xc, R, hh, E_star, lam)
-    sc[i, S_NIN], sc[i, S_NC] = n_in, n_c
+def block_scales(sc, dn, dn_c, R, h, m, E_star, lam):
+    """Columns 0..m of a block's table ``sc`` (N_SCALES, >= m): :func:`contact_scales` of each contact in
+    contact (dn > 0 and a spacing h > 0), finite values to be discarded for the others.
+
+    One loop, branch-free, one contiguous row per quantity: LLVM vectorises it (it does not when
+    the loop body calls an inlined function that writes ``sc``).
+    """
+    for i in range(m):
+        go = (dn[i] > 0.0) & (h[i] > 0.0)
+        x, xc, hh = (dn[i], dn_c[i], h[i]) if go else (1.0, 0.5, 1.0)
+        (sc[S_C, i], sc[S_Q, i], sc[S_FN, i], sc[S_KN, i], n_in, sc[S_RHO, i], sc[S_DRHO, i], n_c, sc[S_E, i],
+         sc[S_EC, i]) = contact_scales(x, xc, R[i], hh, E_star, lam)
+        sc[S_NIN, i], sc[S_NC, i] = n_in, n_c
 
 
 @numba.njit(cache=True, inline="always")
 def prefetch_ahead(w_all, sc, b0, i, m):
     """Prefetch the springs in contact, and those entering, of the contact AHEAD rows after row i of a block."""
     if i + AHEAD < m:
-        prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[i + AHEAD, S_NIN]), int(sc[i + AHEAD, S_NC])) + LANES)
+        prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[S_NIN, i + AHEAD]), int(sc[S_NC, i + AHEAD])) + LANES)
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FAST)
@@ -521,9 +527,8 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((m, N_SCALES))
-    for i in range(m):
-        scales_into(sc, i, dn[i] > 0.0, dn[i], dn_c[b0 + i], R[i], h_all[b0 + i], E_star, lam)
+    sc = np.empty((N_SCALES, m))
+    block_scales(sc, dn, dn_c[b0:b0 + m], R, h_all[b0:b0 + m], m, E_star, lam)
     for i in range(m):
         prefetch_ahead(w_all, sc, b0, i, m)
         if dn[i] <= 0.0:
@@ -531,8 +536,8 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
                 out[a, i] = 0.0
             continue
         Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, f_n, k_n = committed_springs_scaled(
-            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[i, S_C], sc[i, S_Q], sc[i, S_FN],
-            sc[i, S_KN], int(sc[i, S_NIN]), sc[i, S_RHO], sc[i, S_DRHO], int(sc[i, S_NC]))
+            dn[i], dds[i], ddt[i], dn_c[b0 + i], lam, mu, w_all[b0 + i], sc[S_C, i], sc[S_Q, i], sc[S_FN, i],
+            sc[S_KN, i], int(sc[S_NIN, i]), sc[S_RHO, i], sc[S_DRHO, i], int(sc[S_NC, i]))
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = f_n, Fs, Ft, k_n, 0.0, 0.0
         out[6, i], out[7, i], out[8, i], out[9, i], out[10, i], out[11, i] = J10, J11, J12, J20, J21, J22
         out[12, i] = float(state_code(n_springs, n_slip))
@@ -610,9 +615,8 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((m, N_SCALES))
-    for i in range(m):
-        scales_into(sc, i, live[i] & (dn[i] > 0.0), dn[i], dn_c[b0 + i], R[i], h_all[b0 + i], E_star, lam)
+    sc = np.empty((N_SCALES, m))
+    block_scales(sc, dn, dn_c[b0:b0 + m], R, h_all[b0:b0 + m], m, E_star, lam)
     for i in range(m):
         prefetch_ahead(w_all, sc, b0, i, m)
         if not live[i]:
@@ -620,8 +624,8 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
         sl = b0 + i
         if dn[i] > 0.0:
             fits, code, work, stored, diss = committed_commit_scaled(
-                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[i, S_C], sc[i, S_Q], int(sc[i, S_NIN]),
-                sc[i, S_RHO], sc[i, S_DRHO], int(sc[i, S_NC]), sc[i, S_E], sc[i, S_EC])
+                dn[i], dds[i], ddt[i], dn_c[sl], lam, mu, w_all[sl], sc[S_C, i], sc[S_Q, i], int(sc[S_NIN, i]),
+                sc[S_RHO, i], sc[S_DRHO, i], int(sc[S_NC, i]), sc[S_E, i], sc[S_EC, i])
             if fits:
                 res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, 0.0
                 continue
