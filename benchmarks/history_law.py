@@ -119,13 +119,24 @@ def best_of(f, repeat):
     return float(np.median(times)), float(np.min(times))
 
 
+def timed_increment(pop, state, d, ws):
+    """(trial, commit) [s] of one increment to ``d`` as the driver makes it: a first trial (untimed), a
+    second one at ``d`` (timed), then the commit (timed), which uses the trial's workspace."""
+    evaluate_unchecked(pop, d, state, ws)
+    t = time.perf_counter()
+    evaluate_unchecked(pop, d, state, ws)
+    t1 = time.perf_counter()
+    state.commit(d, workspace=ws)
+    return t1 - t, time.perf_counter() - t1
+
+
 def trial_and_commit(pop, state, d, ws, repeat):
     """Median times [s] of a trial at ``d`` and of the commit of that increment, measured in pairs,
     and of the same trial testing every asperity for fresh contacts.
 
     Each repeat restores the same committed state and makes a first trial at ``d`` (untimed: a
     restore leaves the state out of the caches), then times a second trial there, and the commit
-    as the driver makes it (it uses the trial's workspace); pairs, because the speed of this
+    as the driver makes it (:func:`timed_increment`); pairs, because the speed of this
     shared machine drifts between runs.  Then, the same way (restore, a first trial, a timed
     one), a trial whose workspace has no index of the asperities that may touch.
     """
@@ -134,13 +145,9 @@ def trial_and_commit(pop, state, d, ws, repeat):
     trial, trial_all, commit = [], [], []
     for _ in range(repeat):
         state.restore(start)
-        evaluate_unchecked(pop, d, state, ws)
-        t = time.perf_counter()
-        evaluate_unchecked(pop, d, state, ws)
-        t1 = time.perf_counter()
-        state.commit(d, workspace=ws)
-        trial.append(t1 - t)
-        commit.append(time.perf_counter() - t1)
+        tt, tc = timed_increment(pop, state, d, ws)
+        trial.append(tt)
+        commit.append(tc)
         state.restore(start)
         evaluate_unchecked(pop, d, state, ws_all)
         t = time.perf_counter()
@@ -152,23 +159,15 @@ def trial_and_commit(pop, state, d, ws, repeat):
 
 def as_in_a_run(pop, state, step, ws, repeat):
     """Median times [s] of the trial and the commit of ``repeat`` consecutive increments ``step`` from the
-    current state, as a run makes them: a first trial (untimed), a second one at the same displacement
-    (timed), then the commit (timed).  Nothing rewrites the spring store between them but the commits, in
-    place, so the springs are as warm as in a run; after a restore they are not (the restore writes the
-    whole store, and the trials that follow run up to 40 % slower, the first five getting faster in turn).
-    The first two increments are not counted.  Leaves ``state`` moved on by ``repeat`` increments.
+    current state, as a run makes them (:func:`timed_increment`).
+
+    Nothing rewrites the spring store between them but the commits, in place, so the springs are as
+    warm as in a run; after a restore they are not (the restore writes the whole store, and the
+    trials that follow run up to 40 % slower, the first five getting faster in turn).  The first two
+    increments are not counted.  Leaves ``state`` moved on by ``repeat`` + 2 increments.
     """
-    trial, commit = [], []
-    for _ in range(repeat + 2):
-        d = state.delta_c + step
-        evaluate_unchecked(pop, d, state, ws)
-        t = time.perf_counter()
-        evaluate_unchecked(pop, d, state, ws)
-        t1 = time.perf_counter()
-        state.commit(d, workspace=ws)
-        trial.append(t1 - t)
-        commit.append(time.perf_counter() - t1)
-    return float(np.median(trial[2:])), float(np.median(commit[2:]))
+    times = np.array([timed_increment(pop, state, state.delta_c + step, ws) for _ in range(repeat + 2)])
+    return float(np.median(times[2:, 0])), float(np.median(times[2:, 1]))
 
 
 def springs_in_contact(state) -> int:
