@@ -283,9 +283,7 @@ def test_block_table_of_contact_scales_is_the_per_contact_one():
     h[[5, 20]] = 0.0  # free slots
     dn[5] = -1e-9
     dn[20] = 1e-7  # a free slot at a positive overlap: still finite
-    sc = np.full((mdr.N_SCALES, m), np.nan)
-    blocked = numba_block_scales()
-    blocked(sc, dn, dn_c, R_, h, m, E_STAR, LAM)
+    sc = numba_block_scales()(dn, dn_c, R_, h, 0, m, E_STAR, LAM)
     assert np.all(np.isfinite(sc))
     for i in range(m):
         if dn[i] <= 0.0 or h[i] == 0.0:
@@ -305,7 +303,7 @@ def numba_block_scales():
     from asperity_sim.laws import mdr
 
     @numba.njit(error_model="numpy", fastmath=mdr.FAST)
-    def run(sc, dn, dn_c, R_, h, m, E_star, lam):
-        mdr.block_scales(sc, dn, dn_c, R_, h, m, E_star, lam)
+    def run(dn, dn_c, R_, h, b0, m, E_star, lam):
+        return mdr.block_scales(dn, dn_c, R_, h, b0, m, E_star, lam)
 
     return run

@@ -110,8 +110,8 @@ class Law:
 
         numba invalidates a cached kernel only when its own file changes, not when a function it
         calls does; the hash covers the files that define the law's kernels, the shared Hertz
-        contact, the geometry and the prefetch, so a change in any of them compiles anew (a law whose kernels
-        call helpers from other files should keep them in its own file).
+        contact, the geometry and the prefetch, so a change in any of them compiles anew (a law
+        whose kernels call helpers from other files should keep them in its own file).
         """
         h = self.history
         funcs = [self.local] if h is None else [h.trial, h.commit, h.trial_block, h.commit_block]

@@ -495,19 +495,23 @@ N_SCALES = 10
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def block_scales(sc, dn, dn_c, R, h, m, E_star, lam):
-    """Columns 0..m of a block's table ``sc`` (N_SCALES, >= m): :func:`contact_scales` of each contact in
-    contact (dn > 0 and a spacing h > 0), finite values to be discarded for the others.
+def block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam):
+    """A block's table of contact scales (N_SCALES, m): column i :func:`contact_scales` of slot b0 + i (its
+    overlap dn[i], radius R[i], committed overlap and spacing from ``dn_c`` and ``h_all``) if in contact
+    (dn > 0 and a spacing h > 0), finite values to be discarded otherwise.
 
     One loop, branch-free, one contiguous row per quantity: LLVM vectorises it (it does not when
-    the loop body calls an inlined function that writes ``sc``).
+    the loop body calls an inlined function that writes the table).
     """
+    sc = np.empty((N_SCALES, m))
+    dn_cb, h = dn_c[b0:b0 + m], h_all[b0:b0 + m]  # slices: the loop reads them at i, a vector load
     for i in range(m):
         go = (dn[i] > 0.0) & (h[i] > 0.0)
-        x, xc, hh = (dn[i], dn_c[i], h[i]) if go else (1.0, 0.5, 1.0)
+        x, xc, hh = (dn[i], dn_cb[i], h[i]) if go else (1.0, 0.5, 1.0)
         (sc[S_C, i], sc[S_Q, i], sc[S_FN, i], sc[S_KN, i], n_in, sc[S_RHO, i], sc[S_DRHO, i], n_c, sc[S_E, i],
          sc[S_EC, i]) = contact_scales(x, xc, R[i], hh, E_star, lam)
         sc[S_NIN, i], sc[S_NC, i] = n_in, n_c
+    return sc
 
 
 @numba.njit(cache=True, inline="always")
@@ -527,8 +531,7 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((N_SCALES, m))
-    block_scales(sc, dn, dn_c[b0:b0 + m], R, h_all[b0:b0 + m], m, E_star, lam)
+    sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
         prefetch_ahead(w_all, sc, b0, i, m)
         if dn[i] <= 0.0:
@@ -615,8 +618,7 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
-    sc = np.empty((N_SCALES, m))
-    block_scales(sc, dn, dn_c[b0:b0 + m], R, h_all[b0:b0 + m], m, E_star, lam)
+    sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
         prefetch_ahead(w_all, sc, b0, i, m)
         if not live[i]:
