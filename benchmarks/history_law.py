@@ -248,6 +248,16 @@ SCALE = r"""
 import json, resource, sys, time
 import numpy as np
 from asperity_sim import Population, paths, presets, simulate
+
+def peak_rss():
+    # this process's own peak [B]: VmHWM starts anew at exec, where ru_maxrss keeps the parent's peak
+    try:
+        with open("/proc/self/status") as f:
+            return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
 n, law, which = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 S, D = paths.STRESS, paths.DISPLACEMENT
 if which == "long":   # 300 increments: normal 50, shear 250
@@ -258,13 +268,6 @@ else:                 # cyclic: normal 30, then 6 cycles of +-3 um in 90 increme
         st += [paths.Stage((S, D, D), (300e6, 3e-6, 0), 22), paths.Stage((S, D, D), (300e6, -3e-6, 0), 45),
                paths.Stage((S, D, D), (300e6, 0, 0), 23)]
     path = paths.LoadPath(tuple(st))
-def peak_rss():
-    # this process's own peak [B]: VmHWM starts anew at exec, where ru_maxrss keeps the parent's peak
-    try:
-        with open("/proc/self/status") as f:
-            return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))
-    except (OSError, StopIteration):
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 simulate(presets.R1, paths.LoadPath(path.stages[:1]), n=2000, law=law, k=16)  # compile
 t = time.perf_counter()
 pop = Population.sample(presets.R1, n, seed=1)
