@@ -1,7 +1,7 @@
-"""``python -m asperity_sim``: the ``asperity-sim`` command line (:mod:`asperity_sim.cli`)."""
+"""``python -m asperity_sim``: the ``asperity-sim`` command line (:mod:`asperity_sim.ui.cli`)."""
 
 import sys
 
-from .cli import main
+from .ui.cli import main
 
 sys.exit(main())

@@ -7,7 +7,7 @@ Owns the exception types of :func:`asperity_sim.simulate`: a run stops only with
 from __future__ import annotations
 
 
-class _Deadline(Exception):
+class Deadline(Exception):
     """The wall-time limit passed during an increment (turned into WallTimeExceededError by the loop)."""
 
 
@@ -33,3 +33,19 @@ class OutputWriteError(SimulationError):
 
 class WallTimeExceededError(SimulationError):
     """The run took longer than its ``max_wall_time``; ``.dataset`` holds every converged increment."""
+
+
+class CheckpointError(ValueError):
+    """A checkpoint cannot be used: unreadable, another version or format, or another run."""
+
+
+class LawDomainWarning(UserWarning):
+    """A path-independent law was driven along a path outside its domain (see :mod:`asperity_sim.solve.domain`)."""
+
+
+class SurfaceError(ValueError):
+    """A topography that cannot be used; the message names the file or value and what is allowed."""
+
+
+class SceneError(ValueError):
+    """A scene or sweep file that cannot be used; the message says where, what and what is allowed."""

@@ -12,8 +12,6 @@ import math
 import numbers
 from dataclasses import dataclass, field
 
-__all__ = ["InterfaceParams", "check_real", "derived"]
-
 
 def _f(units: str, long_name: str, **kw):
     return field(metadata={"units": units, "long_name": long_name}, **kw)

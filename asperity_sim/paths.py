@@ -24,9 +24,6 @@ import numpy as np
 
 from .params import check_real
 
-__all__ = ["Stage", "LoadPath", "three_step", "constant_normal_shear", "DISPLACEMENT", "STRESS", "MIN_FRACTION",
-           "BUDGET_FACTOR", "BUDGET_SLACK"]
-
 MIN_FRACTION = 1e-6
 """Smallest ``max_fraction`` of a stage: at most 1e6 increments of the largest size."""
 BUDGET_FACTOR = 4

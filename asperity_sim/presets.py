@@ -5,8 +5,6 @@ e is not given in the paper; SPEC §1 fixes e = 1 and b = c = d = 0.
 
 from .params import InterfaceParams
 
-__all__ = ["R1", "S1", "R2", "S2", "TABLE1", "TITLES"]
-
 R1 = InterfaceParams(N=200e6, R_m=50e-6, R_sigma=15e-6, mu=1.0, G=80e9, nu=0.3,
                      r_o=0.0, alpha=6.14, beta=3.52e-6)
 """Rough interface (Table 1, R1)."""

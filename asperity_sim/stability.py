@@ -149,7 +149,7 @@ def expected(case, kind):
 
 
 def params_of(case):
-    from asperity_sim import presets
+    from . import presets
 
     return presets.TABLE1[case.base].replace(**case.changes)
 
@@ -163,7 +163,8 @@ def closure_scale(p):
 
 def normal_stress(p, case, d):
     """sigma_n [Pa] of the stress-controlled paths, from a 20 000-asperity paper-law population."""
-    from asperity_sim import Population
+    from .kernels.evaluate import evaluate
+    from .sampling.population import Population
 
     if isinstance(case.sigma_n, (int, float)):
         return float(case.sigma_n)
@@ -171,11 +172,11 @@ def normal_stress(p, case, d):
     if case.sigma_n == "pi/2":
         # theta_m(c, R_m) = pi/2 at c = R_m / k_e (Eq. 9); the closure is Delta_1 = c - r_o
         d = max(p.R_m / p.k_e - p.r_o, d) if p.k_e > 0 else 10.0 * d
-    return float(pop.evaluate([d, 0.0, 0.0]).stress[0])
+    return float(evaluate(pop, [d, 0.0, 0.0]).stress[0])
 
 
 def build_path(kind, p, d, sigma_n, inc):
-    from asperity_sim import paths
+    from . import paths
 
     S, D = paths.STRESS, paths.DISPLACEMENT
     if kind == "three_step":
@@ -483,7 +484,7 @@ class Hostile:
 
 
 def _tiny_path():
-    from asperity_sim.paths import LoadPath, Stage
+    from .paths import LoadPath, Stage
 
     S, D = "s", "d"
     return LoadPath((Stage((S, D, D), (300e6, 0, 0), 3, name="normal"),
@@ -539,7 +540,8 @@ def _tiny(folder, **kw):
 def _resumed(law, folder, path, **kw):
     """SAME if resuming ``path`` gives the uninterrupted run's bits, else what differs."""
     import asperity_sim as asim
-    from asperity_sim.testing import same_run
+
+    from .testing import same_run
 
     ds = asim.resume(path, checkpoint_every=None, **kw)
     return SAME if same_run(base_run(law, folder)[1], ds) else "resumed to different bits"
@@ -547,7 +549,7 @@ def _resumed(law, folder, path, **kw):
 
 def _forged(law, folder, change):
     """Resume a copy of the base checkpoint with arrays rewritten by ``change(arrays)`` (valid checksums)."""
-    from asperity_sim.testing import arrays_of, write_checkpoint
+    from .testing import arrays_of, write_checkpoint
 
     raw, _ = base_run(law, folder)
     arrays = arrays_of(raw)
@@ -599,7 +601,7 @@ def probe_resume_output_is_checkpoint(law, folder):
 
 def probe_existing_output(law, folder):
     """``asperity-sim run`` onto an existing file without ``--overwrite``: exit 1, the file untouched."""
-    from asperity_sim import cli
+    from .ui import cli
 
     scene = folder / "small.toml"
     scene.write_text(f'title = "hostile"\n[parameters]\npreset = "S1"\n[run]\nn = 200\nseed = 3\nlaw = "{law}"\n'
@@ -629,7 +631,7 @@ def probe_truncated(law, folder):
 
 
 def probe_bit_flip(law, folder):
-    from asperity_sim.testing import flip_bit, member_data_offset
+    from .testing import flip_bit, member_data_offset
 
     raw, _ = base_run(law, folder)
     path = folder / "flipped.npz"
@@ -679,7 +681,8 @@ def probe_other_law(law, folder):
 
 def probe_other_path(law, folder):
     import asperity_sim as asim
-    from asperity_sim import paths
+
+    from . import paths
 
     raw, _ = base_run(law, folder)
     ck = folder / "ck.npz"

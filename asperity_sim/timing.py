@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["REPEAT_BELOW", "REPEATS", "timed"]
-
 REPEAT_BELOW = 0.2
 """A run shorter than this [s] is timed :data:`REPEATS` times (median)."""
 REPEATS = 3

@@ -56,9 +56,10 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from asperity_sim import Population, driver, paths, presets, simulate
-from asperity_sim.assemble import Workspace, evaluate_unchecked
-from asperity_sim.state import ContactState
+from asperity_sim import paths, Population, presets, simulate
+from asperity_sim.solve import run as driver
+from asperity_sim.kernels.evaluate import evaluate_unchecked, Workspace
+from asperity_sim.kernels.state import ContactState
 from streaming import best_of, memory_seconds_per_byte, stream
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"

@@ -31,8 +31,8 @@ import numba
 import numpy as np
 
 from asperity_sim import Population, presets
-from asperity_sim.assemble import Workspace, evaluate
-from asperity_sim.state import ContactState
+from asperity_sim.kernels.evaluate import evaluate, Workspace
+from asperity_sim.kernels.state import ContactState
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"
 DELTA = np.array([15e-6, 3e-6, 1e-6])
@@ -44,7 +44,7 @@ import numpy as np
 from asperity_sim import Population, presets
 pop = Population.sample(presets.R1, 1000, seed=1)
 t1 = time.perf_counter()
-pop.evaluate(np.array([15e-6, 3e-6, 1e-6]))
+evaluate(pop, np.array([15e-6, 3e-6, 1e-6]))
 t2 = time.perf_counter()
 print(t1 - t0, t2 - t1)
 """

@@ -46,8 +46,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "studies"), str(ROOT / "scenarios")]
 from convergence import errors, nominal_steps, reference_path  # noqa: E402
 
-from asperity_sim import Population, gridmethod, presets  # noqa: E402
-from asperity_sim.assemble import Workspace, evaluate  # noqa: E402
+from asperity_sim import Population, presets  # noqa: E402
+from asperity_sim.analysis import gridmethod  # noqa: E402
+from asperity_sim.kernels.evaluate import evaluate, Workspace  # noqa: E402
 from streaming import best_of  # noqa: E402
 
 OUT = ROOT / "outputs"

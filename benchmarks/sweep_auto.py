@@ -3,7 +3,7 @@
 Question (issue 26): on 2 shared cores a local cluster costs seconds to start (worker
 processes import asperity_sim and load the numba cache), so it only pays for sweeps big
 enough.  ``run_sweep(scheduler=None)`` chooses serial or cluster from a cost model
-(:func:`asperity_sim.sweep.choose_engine`); this benchmark times, at three sizes of the
+(:func:`asperity_sim.runs.engine.choose_engine`); this benchmark times, at three sizes of the
 constant-normal-stress path of scenarios/constant_normal_shear_R1.toml (120 increments):
 
 - serial: ``run_sweep(scheduler="serial")`` (numba's default thread count);
@@ -42,15 +42,15 @@ SIZES = {  # name: (runs, law, n, k)
 
 
 def make_sweep(runs, law, n, k):
-    from asperity_sim.scene import load_scene
-    from asperity_sim.sweep import Sweep
+    from asperity_sim.runs.scene import load_scene
+    from asperity_sim.runs.sweep import Sweep
 
     scene = load_scene(ROOT / "scenarios" / "constant_normal_shear_R1.toml").replace(n=n, law=law, k=k, seed=1)
     return Sweep(scene=scene, seeds=tuple(range(1, runs + 1)), source="benchmarks/sweep_auto.py")
 
 
 def timed(sweep, scheduler):
-    from asperity_sim.sweep import run_sweep
+    from asperity_sim.runs.engine import run_sweep
 
     t = time.perf_counter()
     ds = run_sweep(sweep, scheduler=scheduler, workers=2, note=lambda m: None)
@@ -58,7 +58,7 @@ def timed(sweep, scheduler):
 
 
 def main(argv=None):
-    from asperity_sim.sweep import choose_engine, estimate_run_seconds, run_sweep
+    from asperity_sim.runs.engine import choose_engine, estimate_run_seconds, run_sweep
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeat", type=int, default=2)

@@ -38,8 +38,9 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from asperity_sim.scene import load_scene
-from asperity_sim.sweep import Sweep, run_sweep
+from asperity_sim.runs.scene import load_scene
+from asperity_sim.runs.engine import run_sweep
+from asperity_sim.runs.sweep import Sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "outputs"
@@ -51,7 +52,7 @@ def make_sweep(runs, n):
 
 
 def _warm_up():
-    from asperity_sim.sweep import run_one
+    from asperity_sim.runs.engine import run_one
 
     run_one(make_sweep(1, 1000).scenes()[0])
 

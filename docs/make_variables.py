@@ -12,7 +12,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from asperity_sim import variables as v  # noqa: E402
+from asperity_sim.output import variables as v  # noqa: E402
 
 GROUPS = [
     ("Every run, per step", "STEP_VARIABLES", "Written by `simulate` and `asperity-sim run` for every law."),
@@ -26,7 +26,7 @@ GROUPS = [
     ("Sampled asperities (with snapshots)", "ASPERITY_VARIABLES", "The sampled population, with the snapshots."),
     ("Coordinates", "COORDS", ""),
     ("Joint properties", "PROPERTY_VARIABLES",
-     "Derived by `asperity_sim.properties` and `asperity_sim.envelope` (`asperity-sim envelope`, `cyclic`); "
+     "Derived by `asperity_sim.analysis.properties` and `asperity_sim.runs.envelope` (`asperity-sim envelope`, `cyclic`); "
      "`point` stands for the grid and replica dimensions of the sweep they come from."),
 ]
 

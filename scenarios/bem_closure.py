@@ -1,7 +1,7 @@
 """How far is the asperity model from exact contact mechanics of the same surfaces? (BEM, tamaas)
 
 Physical question: two synthetic self-affine surfaces are summed into a composite topography
-(asperity_sim.surfaces); its normal contact against a flat elastic half-space of the model's
+(asperity_sim.analysis.surfaces); its normal contact against a flat elastic half-space of the model's
 own composite modulus E* = G/(1 - nu) (SPEC §5) is solved exactly by the tamaas
 boundary-element solver (Polonsky–Keer, periodic) at loads giving contact-area fractions from
 0.1 % to about 10 %.  The same composite is fitted (N, alpha, beta, R_m, R_sigma; the rest
@@ -38,12 +38,12 @@ import numpy as np
 import xarray as xr
 from scipy import optimize
 
-from asperity_sim import presets
+from asperity_sim import evaluate, presets
 from asperity_sim.geometry import theta_m_array
-from asperity_sim.io import read_netcdf, write_netcdf
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
 from asperity_sim.params import check_real
-from asperity_sim.population import Population
-from asperity_sim.surfaces import bem_contact
+from asperity_sim.sampling.population import Population
+from asperity_sim.analysis.surfaces.bem import bem_contact
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 MODELS = ("parametric", "empirical", "independent")
@@ -90,7 +90,7 @@ def area_fraction(pop: Population, d1: float) -> float:
 def closure_at(pop: Population, pressure: float) -> float:
     """Delta_1 [m] at which sigma_1 (Eq. 23, law paper, no shear) equals ``pressure`` [Pa]."""
     def f(d1):
-        return pop.evaluate((d1, 0.0, 0.0)).stress[0] - pressure
+        return evaluate(pop, (d1, 0.0, 0.0)).stress[0] - pressure
 
     hi = max(pop.r[min(pop.n - 1, 10)], pop.params.beta)
     while f(hi) < 0.0:
@@ -107,7 +107,7 @@ def main(argv=None):
     if importlib.util.find_spec("tamaas") is None:
         print('bem_closure needs tamaas: pip install "asperity-sim[bem]"', file=sys.stderr)
         return 1
-    from asperity_sim import surfaces
+    from asperity_sim.analysis import surfaces
 
     args.outdir.mkdir(parents=True, exist_ok=True)
     n, dx = args.pixels, L / args.pixels
@@ -137,7 +137,7 @@ def main(argv=None):
             cl[i, k] = closure_at(pops[name], p)
             af[i, k] = area_fraction(pops[name], cl[i, k])
     grid = np.linspace(0.0, 1.2 * max(cl.max(), bem_out[0].max()), 60)
-    curve_p = np.array([[pops[m].evaluate((d, 0.0, 0.0)).stress[0] for d in grid] for m in MODELS])
+    curve_p = np.array([[evaluate(pops[m], (d, 0.0, 0.0)).stress[0] for d in grid] for m in MODELS])
     curve_a = np.array([[area_fraction(pops[m], d) for d in grid] for m in MODELS])
     ds = xr.Dataset(
         {

@@ -30,8 +30,8 @@ import numpy as np
 from _common import Timer, add_reference, check_positive, fmt, parse_args
 
 from asperity_sim import paths
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.scene import load_scene
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.runs.scene import load_scene
 
 SCENES = {name: Path(__file__).resolve().parent / f"constant_normal_shear_{name}.toml" for name in ("R1", "S1")}
 
@@ -69,7 +69,7 @@ def shear_path(sigma_n, d2_max, inc):
 
 def main(argv=None):
     # matplotlib here, not at module level: importing this script for shear_path stays light
-    from asperity_sim.plotting import plot_constant_normal_shear, shear_stage
+    from asperity_sim.output.plotting import plot_constant_normal_shear, shear_stage
 
     scenes = {name: load_scene(f) for name, f in SCENES.items()}
     args = parse_args(__doc__.splitlines()[0], n_default=scenes["R1"].n, argv=argv,

@@ -23,8 +23,8 @@ from _common import Timer, check_positive, parse_args
 from constant_normal_shear import shear_path
 
 from asperity_sim import Population, presets, simulate
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.plotting import plot_history_vs_paper, shear_stage
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.output.plotting import plot_history_vs_paper, shear_stage
 
 
 def _extra(p):

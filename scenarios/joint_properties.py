@@ -8,10 +8,10 @@ rough (R1) and smooth (S1) interfaces of the paper's Table 1 and both asperity l
    sigma_1 raised, then held while Delta_2 goes to 50 um) at several normal stresses and
    writes the strength envelope (peak and residual shear stress, friction coefficients,
    dilation angle at peak, normal and shear stiffness at the start of shear), with fitted
-   Mohr-Coulomb and power-law envelopes (:func:`asperity_sim.envelope.envelope`);
+   Mohr-Coulomb and power-law envelopes (:func:`asperity_sim.runs.envelope.envelope`);
 2. runs two symmetric shear cycles 0 -> +a -> -a -> 0 at several amplitudes a after
    sigma_1 = 300 MPa, and writes the secant stiffness ratio (G/Gmax) and the equivalent
-   damping ratio of the second cycle (:func:`asperity_sim.envelope.cyclic`);
+   damping ratio of the second cycle (:func:`asperity_sim.runs.envelope.cyclic`);
 3. checks the paper's qualitative findings at 500 MPa (SPEC §7): S1 stiffer at small shear
    and yielding sharply just above mu, R1 hardening to a higher resistance, both
    compressing then dilating.
@@ -36,9 +36,10 @@ from pathlib import Path
 import numpy as np
 from _common import Timer, parse_args
 
-from asperity_sim import envelope as E
-from asperity_sim.io import read_netcdf
-from asperity_sim.scene import load_scene, scale_increments
+from asperity_sim.runs import envelope as E
+from asperity_sim.runs import figures as F
+from asperity_sim.output.netcdf import read_netcdf
+from asperity_sim.runs.scene import load_scene, scale_increments
 
 HERE = Path(__file__).resolve().parent
 SIGMA_N = np.array([10e6, 30e6, 100e6, 300e6, 500e6, 1000e6])
@@ -93,7 +94,7 @@ def _to_fraction_of_peak(p, stage, fraction):
 
 def plot_summary(env_files: dict, cyc_files: dict):
     """R1 against S1, both laws: peak friction, shear stiffness against sigma_n; G/Gmax, damping against a."""
-    from asperity_sim.plotting import plt
+    from asperity_sim.output.plotting import plt
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
     colors = {"R1": "tab:red", "S1": "tab:blue"}
@@ -146,7 +147,7 @@ def main(argv=None):
                                  path=scale_increments(base.path, inc))
             with Timer() as t:
                 ds = E.envelope(scene, sigma, replicas=replicas, scheduler=None)
-            files = E.write_products(ds, args.outdir / f"joint_envelope_{name}_{law}.nc")
+            files = F.write_products(ds, args.outdir / f"joint_envelope_{name}_{law}.nc")
             env_files[(name, law)], env[(name, law)] = files["netcdf"], ds
             f = ds.sel(strength="peak")
             print(f"{name} {law}: envelope at {len(sigma)} normal stresses x {replicas} replicas, n = {args.n}, "
@@ -157,7 +158,7 @@ def main(argv=None):
                   f"{math.degrees(float(f.mc_friction_angle_high)):.2f}]; power law B = {float(f.power_law_B):.3f}")
             with Timer() as t:
                 cy = E.cyclic(scene, amps, cycles=2, increments=max(2, inc // 3), sigma_n=300e6, replicas=replicas)
-            files = E.write_products(cy, args.outdir / f"joint_cyclic_{name}_{law}.nc")
+            files = F.write_products(cy, args.outdir / f"joint_cyclic_{name}_{law}.nc")
             cyc_files[(name, law)] = files["netcdf"]
             print(f"  cyclic at {len(amps)} amplitudes, {t.seconds:.1f} s: G/Gmax "
                   + ", ".join(f"{v:.3f}" for v in cy["secant_stiffness_ratio_mean"].values) + "; damping ratio "

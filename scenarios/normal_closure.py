@@ -27,9 +27,9 @@ from pathlib import Path
 from _common import Timer, add_reference, check_positive, fmt, parse_args
 
 from asperity_sim import paths
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.plotting import plot_normal_closure
-from asperity_sim.scene import load_scene, scale_increments
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.output.plotting import plot_normal_closure
+from asperity_sim.runs.scene import load_scene, scale_increments
 
 SCENES = {name: Path(__file__).resolve().parent / f"normal_closure_{name}.toml" for name in ("R2", "S2")}
 

@@ -23,8 +23,8 @@ import numpy as np
 from _common import Timer, check_positive, parse_args
 
 from asperity_sim import paths, presets, simulate
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.plotting import plot_rotating_shear
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.output.plotting import plot_rotating_shear
 
 
 def _extra(p):

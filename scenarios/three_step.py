@@ -24,9 +24,9 @@ from pathlib import Path
 
 from _common import Timer, add_reference, fmt, parse_args
 
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.plotting import plot_three_step
-from asperity_sim.scene import load_scene, scale_increments
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.output.plotting import plot_three_step
+from asperity_sim.runs.scene import load_scene, scale_increments
 
 SCENES = {name: Path(__file__).resolve().parent / f"three_step_{name}.toml" for name in ("R1", "S1")}
 

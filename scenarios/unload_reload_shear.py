@@ -19,9 +19,9 @@ import sys
 import numpy as np
 from _common import Timer, parse_args
 
-from asperity_sim import Population, paths, presets, simulate
-from asperity_sim.io import read_netcdf, write_netcdf
-from asperity_sim.plotting import plot_unload_reload
+from asperity_sim import paths, Population, presets, simulate
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+from asperity_sim.output.plotting import plot_unload_reload
 
 CLOSURE = {"R1": 15e-6, "S1": 6e-6}
 

@@ -29,14 +29,14 @@ Carlo error shows up in Delta_1, which is reported instead.
 Methods (all in one run, same machine, same number of threads):
   mc           plain Monte Carlo (Population.sample, sampler "random") + asperity_sim.simulate
   rqmc         scrambled Sobol' points (randomised QMC), n = 2^m; its error comes from replicas
-  pruned       height-band pruning + scrambled Sobol' (asperity_sim.pruning.simulate_pruned): the
+  pruned       height-band pruning + scrambled Sobol' (asperity_sim.solve.pruning.simulate_pruned): the
                heights are drawn from the band the scene can reach (provable bound, including
                shear-induced contacts of inclined asperities), weight P(band)/n; a 4096-point
                pilot run gives Delta_1 for stress-controlled paths, the run is checked against
                the bound afterwards and redone with a wider band if it left it (detect and
                correct); pilot and checks are included in the wall time
   pruned_mc    the same band with plain Monte Carlo (shows the variance gain of the band alone)
-  grid         the paper's grid method, Steps 1-5 as published (asperity_sim.gridmethod: Simpson,
+  grid         the paper's grid method, Steps 1-5 as published (asperity_sim.analysis.gridmethod: Simpson,
                Delta_r = 0.01 r90 s, Delta_R = 0.01 R_sigma s, (20/s) x (40/s) in theta, phi, the
                tangent of Eq. 27 by forward differences with step 0.01 r90 at every iterate, Newton),
                s = 1 is the published resolution; deterministic, one replica; its "n" is the number
@@ -99,9 +99,9 @@ from scipy import optimize
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))  # the Fig. 13 path of its scene
 from constant_normal_shear import shear_path  # noqa: E402
 
-from asperity_sim import (Population, SolverSettings, __version__, gridmethod, paths, presets,  # noqa: E402
-                          reference, simulate)
-from asperity_sim.pruning import simulate_pruned  # noqa: E402
+from asperity_sim import __version__, paths, Population, presets, reference, simulate, SolverSettings
+from asperity_sim.analysis import gridmethod
+from asperity_sim.solve.pruning import simulate_pruned  # noqa: E402
 from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed  # noqa: E402
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"

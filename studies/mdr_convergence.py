@@ -70,7 +70,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from asperity_sim import Population, __version__, paths, presets, simulate
+from asperity_sim import __version__, paths, Population, presets, simulate
 from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"

@@ -67,8 +67,8 @@ def parse_args(argv=None):
 def main(argv=None):
     args = parse_args(argv)
     from asperity_sim import __version__, stability
-    from asperity_sim.io import write_netcdf
-    from asperity_sim.solver import SolverSettings
+    from asperity_sim.output.netcdf import write_netcdf
+    from asperity_sim.solve.solver import SolverSettings
 
     inc = args.increments or (3 if args.quick else 6)
     runs = stability.select_runs(quick=args.quick, big=not args.no_big, only=args.only)

@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from asperity_sim import Population, presets, reference
-from asperity_sim.assemble import (Workspace, birth_angles, evaluate, evaluate_steps, evaluation_from,
-                                   may_touch_follow, may_touch_within, snapshot)
+from asperity_sim.kernels.commit import birth_angles
+from asperity_sim.kernels.evaluate import evaluate, evaluate_steps, evaluation_from, snapshot, Workspace
+from asperity_sim.kernels.reach import may_touch_follow, may_touch_within
 
 um = 1e-6
 R1, S1 = presets.R1, presets.S1
@@ -194,7 +195,7 @@ def test_fresh_contact_index_gives_the_bits_of_a_full_search():
     """A history-law trial that tests only the asperities listed for a box (Workspace index) finds the same
     fresh contacts, in the same order, as one that tests every asperity: equal results at every trial of
     a path that loads, shears, turns back and unloads, with the index built more than once and used."""
-    from asperity_sim.state import ContactState
+    from asperity_sim.kernels.state import ContactState
 
     pop = Population.sample(R1, 20_000, seed=5)
     listed, full = Workspace(pop.n), Workspace(pop.n, index=False)
@@ -275,7 +276,7 @@ def test_flat_on_rough_against_greenwood_williamson():
 
 
 def test_evaluate_rejects_wrong_population_and_workspace():
-    from asperity_sim.assemble import Workspace
+    from asperity_sim.kernels.evaluate import Workspace
 
     pop = Population.sample(R1, 5000, seed=1)
     with pytest.raises(ValueError, match="not a Population"):
@@ -310,7 +311,7 @@ def test_vectorised_follow_kernel_matches_scalar_libm_kernel(params, delta_um):
 BITS = """
 import numba, numpy as np
 from asperity_sim import Population, presets
-from asperity_sim.assemble import evaluate
+from asperity_sim.kernels.evaluate import evaluate
 pop = Population.sample(presets.R1, 100000, seed=5)
 out = []
 for th in (1, 2):

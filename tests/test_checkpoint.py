@@ -22,9 +22,9 @@ import pytest
 import xarray as xr
 
 import asperity_sim as asim
-from asperity_sim import CheckpointError, Population, paths, presets, simulate
-from asperity_sim import checkpoint as ckpt
-from asperity_sim.io import read_netcdf, write_netcdf
+from asperity_sim import CheckpointError, paths, Population, presets, simulate
+from asperity_sim.output import checkpoint as ckpt
+from asperity_sim.output.netcdf import read_netcdf, write_netcdf
 from asperity_sim.paths import LoadPath, Stage
 
 VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}  # differ between any two runs
@@ -304,7 +304,7 @@ def test_failed_netcdf_write_leaves_no_file_under_the_final_name(tmp_path, monke
 
 WRITER = textwrap.dedent("""
     import numpy as np, xarray as xr
-    from asperity_sim.io import write_netcdf
+    from asperity_sim.output.netcdf import write_netcdf
     ds = xr.Dataset({{"x": (("a", "b"), np.arange(3_000_000, dtype="f8").reshape(3000, 1000) % 977.0)}})
     print("ready", flush=True)
     while True:

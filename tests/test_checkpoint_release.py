@@ -1,8 +1,8 @@
 """The checkpoint version guard against a real release: a checkpoint resumed by another version.
 
 A checkpoint is written by this code; then a release is made the way a release makes it, by
-editing the sources of a copy of the package (``__version__`` in ``asperity_sim/__init__.py``,
-and for a release that changes the file layout also ``FORMAT`` in ``asperity_sim/checkpoint.py``),
+editing the sources of a copy of the package (``__version__`` in ``asperity_sim/version.py``,
+and for a release that changes the file layout also ``FORMAT`` in ``asperity_sim/output/checkpoint.py``),
 and the copy is asked, in its own Python process, to resume the checkpoint through the Python
 API and through the command line.  The policy (docs/robustness.md): only the version that wrote a
 checkpoint resumes it, also across a patch release, and the refusal names both versions.
@@ -20,9 +20,10 @@ import numpy as np
 import pytest
 
 import asperity_sim as asim
-from asperity_sim import checkpoint as ckpt
-from asperity_sim import cli, presets, simulate
-from asperity_sim.io import read_netcdf
+from asperity_sim.output import checkpoint as ckpt
+from asperity_sim import presets, simulate
+from asperity_sim.ui import cli, exits
+from asperity_sim.output.netcdf import read_netcdf
 from asperity_sim.paths import LoadPath, Stage
 
 PACKAGE = Path(asim.__file__).resolve().parent
@@ -66,12 +67,12 @@ def _released(tmp_path, version, new_format=None):
     """A copy of the package with its sources edited as a release edits them."""
     root = tmp_path / "released"
     shutil.copytree(PACKAGE, root / "asperity_sim", ignore=shutil.ignore_patterns("__pycache__"))
-    init = root / "asperity_sim" / "__init__.py"
-    text, count = re.subn(r'^__version__ = "[^"]*"$', f'__version__ = "{version}"', init.read_text(), flags=re.M)
+    home = root / "asperity_sim" / "version.py"
+    text, count = re.subn(r'^__version__ = "[^"]*"$', f'__version__ = "{version}"', home.read_text(), flags=re.M)
     assert count == 1
-    init.write_text(text)
+    home.write_text(text)
     if new_format is not None:
-        module = root / "asperity_sim" / "checkpoint.py"
+        module = root / "asperity_sim" / "output" / "checkpoint.py"
         text, count = re.subn(r"^FORMAT = \d+$", f"FORMAT = {new_format}", module.read_text(), flags=re.M)
         assert count == 1
         module.write_text(text)
@@ -109,7 +110,7 @@ def test_another_release_refuses_the_checkpoint_naming_both_versions(written, tm
     if format_change:
         assert f"has format {ckpt.FORMAT}" in refusal and f"reads format {new_format} only" in refusal
     command = _in(root, "-m", "asperity_sim", "run", "--resume", str(ck), "-o", str(tmp_path / "out.nc"))
-    assert command.returncode == cli.EXIT_INPUT, command.stderr
+    assert command.returncode == exits.EXIT_INPUT, command.stderr
     line = command.stderr.strip()
     assert "\n" not in line and line.startswith("asperity-sim: error: ")
     assert f"written by asperity_sim {old!r}" in line and f"{new!r}" in line

@@ -2,17 +2,17 @@
 
 A checkpoint is hostile input.  Whatever the damage -- bit flips, truncation, members forged
 with a valid zip checksum, impossible headers, compressed or encrypted members, bad JSON --
-:func:`asperity_sim.checkpoint.load` and :func:`asperity_sim.resume` raise a
+:func:`asperity_sim.output.checkpoint.load` and :func:`asperity_sim.resume` raise a
 :class:`~asperity_sim.CheckpointError` that names the file, never ``NotImplementedError``,
 ``TokenError``, ``RuntimeError``, ``LZMAError``, ``MemoryError``, a raw ``KeyError`` or a
 segfault; a harmless flip (in a part of the zip nobody reads) resumes to the same bits.
-:func:`~asperity_sim.checkpoint.require` is the check the driver calls on every array before a
+:func:`~asperity_sim.output.checkpoint.require` is the check the driver calls on every array before a
 kernel sees it.  No temporary file survives a failed or killed write.
 
 The property tests build one real checkpoint per law (``simulate(..., checkpoint=)``, n = 200)
 and corrupt it by the thousand.  The forged-array cases resume in a child process (a forged
 array that reached a kernel could crash the interpreter); they rely on
-:mod:`asperity_sim.run_checkpoint` calling :func:`require` on every array before any kernel sees it.
+:mod:`asperity_sim.solve.run_checkpoint` calling :func:`require` on every array before any kernel sees it.
 """
 
 import io
@@ -31,8 +31,8 @@ from hypothesis import strategies as st
 
 import asperity_sim as asim
 from asperity_sim import CheckpointError, presets, simulate
-from asperity_sim import checkpoint as ckpt
-from asperity_sim import run_checkpoint
+from asperity_sim.output import checkpoint as ckpt
+from asperity_sim.solve import run_checkpoint
 from asperity_sim.paths import LoadPath, Stage
 from asperity_sim.testing import forge, members, meta_bytes, npy_bytes, same_run, write_zip
 
@@ -500,7 +500,7 @@ def test_forged_population_arrays_never_reach_a_kernel(saved, tmp_path, law):
 def test_netcdf_temporaries_of_a_killed_write_are_removed_by_the_next_write(tmp_path):
     import xarray as xr
 
-    from asperity_sim.io import write_netcdf
+    from asperity_sim.output.netcdf import write_netcdf
 
     out = tmp_path / "run.nc"
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from asperity_sim import cli
-from asperity_sim.io import read_netcdf
+from asperity_sim.ui import cli, exits
+from asperity_sim.output.netcdf import read_netcdf
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 SHIPPED = sorted(p for p in SCENARIOS.glob("*.toml") if not p.name.startswith("sweep_"))
@@ -94,7 +94,7 @@ def test_presets_print_every_parameter_with_its_unit(capsys):
     assert cli.main(["presets", "S2"]) == 0
     only = capsys.readouterr().out
     assert "S2: smooth marble interface" in only and "R1:" not in only and "  nu       = 0.152 [-]" in only
-    assert cli.main(["presets", "R7"]) == cli.EXIT_INPUT
+    assert cli.main(["presets", "R7"]) == exits.EXIT_INPUT
     assert "preset 'R7' is not known (valid: R1, S1, R2, S2)" in _one_error_line(capsys.readouterr().err, 1)
 
 
@@ -107,8 +107,8 @@ class _Terminal(io.StringIO):
 
 def test_run_progress_draws_stage_names_and_increments_on_a_terminal_only():
     from asperity_sim import simulate
-    from asperity_sim.progress import RunProgress
-    from asperity_sim.scene import scene_from_dict, tomllib
+    from asperity_sim.ui.progress import RunProgress
+    from asperity_sim.runs.scene import scene_from_dict, tomllib
 
     scene = scene_from_dict(tomllib.loads(SMALL))
     term, pipe = _Terminal(), io.StringIO()
@@ -124,7 +124,7 @@ def test_run_progress_draws_stage_names_and_increments_on_a_terminal_only():
 
 
 def test_count_progress_counts_runs_on_a_terminal_only():
-    from asperity_sim.progress import CountProgress
+    from asperity_sim.ui.progress import CountProgress
 
     term, pipe = _Terminal(), io.StringIO()
     for stream in (term, pipe):
@@ -182,7 +182,7 @@ def test_broken_scene_one_line_exit_1_and_nothing_lost(case, tmp_path, capsys):
     scene.write_text(SMALL.replace('preset = "S1"', f'preset = "S1"\n{line}'))
     out = tmp_path / "result.nc"
     out.write_bytes(b"previous results")
-    assert cli.main(["run", str(scene), "-o", str(out)]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene), "-o", str(out)]) == exits.EXIT_INPUT
     err = _one_error_line(capsys.readouterr().err, 1)
     assert message in err and str(scene) in err
     assert out.read_bytes() == b"previous results"
@@ -192,7 +192,7 @@ def test_broken_scene_one_line_exit_1_and_nothing_lost(case, tmp_path, capsys):
 def test_quoted_integer_is_not_an_integer(tmp_path, capsys):
     scene = tmp_path / "quoted.toml"
     scene.write_text(SMALL.replace("n = 400", 'n = "400"'))
-    assert cli.main(["run", str(scene)]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene)]) == exits.EXIT_INPUT
     line = _one_error_line(capsys.readouterr().err, 1)
     assert line.endswith(f"{scene}: [run] n = '400' is not an integer: write 400 without quotes "
                          "(valid range: integer in [1, 2147483647])")
@@ -242,7 +242,7 @@ def test_simulation_failure_exit_3_keeps_converged_steps(tmp_path, capsys):
     out = tmp_path / "run.nc"
     code = cli.main(["run", str(scene), "-o", str(out)])
     line = _one_error_line(capsys.readouterr().err, code)
-    assert code == cli.EXIT_FAILED
+    assert code == exits.EXIT_FAILED
     assert "run stopped: sigma_2" in line and "cannot be reached" in line and f"written to {out}" in line
     ds = read_netcdf(out)
     assert ds.attrs["status"].startswith("failed") and ds.sizes["step"] >= 4
@@ -295,7 +295,7 @@ def test_scene_output_may_not_leave_the_scene_folder(tmp_path, monkeypatch, caps
     scene = folder / "small.toml"
     scene.write_text(SMALL + f'[output]\nfile = "{file}"\n')
     monkeypatch.chdir(tmp_path)
-    assert cli.main(["run", str(scene), "--quiet"]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene), "--quiet"]) == exits.EXIT_INPUT
     line = _one_error_line(capsys.readouterr().err, 1)
     assert word in line and repr(file) in line and str(scene) in line and "-o" in line
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["scenes", "small.toml"]
@@ -308,7 +308,7 @@ def test_scene_output_through_a_symlink_out_of_the_folder_is_refused(tmp_path, c
     (folder / "link").symlink_to(tmp_path / "elsewhere")
     scene = folder / "small.toml"
     scene.write_text(SMALL + '[output]\nfile = "link/run.nc"\n')
-    assert cli.main(["run", str(scene), "--quiet"]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene), "--quiet"]) == exits.EXIT_INPUT
     assert "symbolic link" in _one_error_line(capsys.readouterr().err, 1)
     assert not list((tmp_path / "elsewhere").iterdir())
 
@@ -332,7 +332,7 @@ def test_existing_outputs_are_not_overwritten_without_the_flag(tmp_path, capsys)
     assert cli.main(["run", str(scene), "-o", str(out)]) == 0
     first = out.read_bytes()
     capsys.readouterr()
-    assert cli.main(["run", str(scene), "-o", str(out), "--seed", "9"]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene), "-o", str(out), "--seed", "9"]) == exits.EXIT_INPUT
     line = _one_error_line(capsys.readouterr().err, 1)
     assert f"output '{out}' exists; give --overwrite" in line
     assert out.read_bytes() == first
@@ -341,7 +341,7 @@ def test_existing_outputs_are_not_overwritten_without_the_flag(tmp_path, capsys)
     fig = tmp_path / "run.png"
     assert cli.main(["plot", str(out)]) == 0
     capsys.readouterr()
-    assert cli.main(["plot", str(out)]) == cli.EXIT_INPUT
+    assert cli.main(["plot", str(out)]) == exits.EXIT_INPUT
     assert "figure" in _one_error_line(capsys.readouterr().err, 1)
     assert cli.main(["plot", str(out), "--overwrite"]) == 0 and fig.exists()
 
@@ -357,7 +357,7 @@ def test_output_paths_checked_before_any_work(tmp_path, capsys, target, word):
         target = str(tmp_path / "folder.nc")
         (tmp_path / "folder.nc").mkdir()
     before = sorted(p.name for p in tmp_path.rglob("*"))
-    assert cli.main(["run", str(scene), "-o", target]) == cli.EXIT_INPUT
+    assert cli.main(["run", str(scene), "-o", target]) == exits.EXIT_INPUT
     assert word in _one_error_line(capsys.readouterr().err, 1)
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
 
@@ -390,7 +390,7 @@ def test_info_and_plot_on_damaged_or_foreign_files_exit_1_with_one_line(tmp_path
     for path, word in cases.items():
         for cmd in (["info", str(path)], ["plot", str(path), "-o", str(tmp_path / "f.png")]):
             capsys.readouterr()
-            assert cli.main(cmd) == cli.EXIT_INPUT, cmd
+            assert cli.main(cmd) == exits.EXIT_INPUT, cmd
             line = _one_error_line(capsys.readouterr().err, 1)
             assert str(path) in line and word in line and "KeyError" not in line, line
     assert not (tmp_path / "f.png").exists()
@@ -398,7 +398,7 @@ def test_info_and_plot_on_damaged_or_foreign_files_exit_1_with_one_line(tmp_path
 
 def _stopped_checkpoint(scene_path, ck, step):
     """The checkpoint a run of the scene leaves when it dies after ``step`` (killed: nothing else written)."""
-    from asperity_sim.scene import load_scene
+    from asperity_sim.runs.scene import load_scene
 
     class Stop(Exception):
         pass
@@ -467,12 +467,13 @@ def test_resume_of_another_runs_checkpoint_is_refused(tmp_path, capsys):
 
 KILLED_CLI = """
 import sys, time
-from asperity_sim import cli, driver
-orig = driver._Run.save_checkpoint
+from asperity_sim.ui import cli
+from asperity_sim.solve import run
+orig = run.Run.save_checkpoint
 def slow(self, *a, **k):
     orig(self, *a, **k)
     time.sleep(0.3)
-driver._Run.save_checkpoint = slow
+run.Run.save_checkpoint = slow
 sys.exit(cli.main(sys.argv[1:]))
 """
 
@@ -483,7 +484,7 @@ def test_sigkill_of_asperity_sim_run_then_resume_gives_the_same_bits(tmp_path):
     import time
 
     from asperity_sim import __version__
-    from asperity_sim import checkpoint as ckpt
+    from asperity_sim.output import checkpoint as ckpt
 
     scene = tmp_path / "small.toml"
     scene.write_text(SMALL.replace("increments = 3", "increments = 8"))
@@ -510,7 +511,7 @@ def test_sigkill_of_asperity_sim_run_then_resume_gives_the_same_bits(tmp_path):
 
 
 def test_ctrl_c_keeps_what_converged_with_the_scene_provenance(tmp_path, monkeypatch, capsys):
-    from asperity_sim.scene import Scene
+    from asperity_sim.runs.scene import Scene
 
     scene = tmp_path / "small.toml"
     scene.write_text(SMALL)
@@ -540,7 +541,7 @@ def test_ctrl_c_keeps_what_converged_with_the_scene_provenance(tmp_path, monkeyp
 
 def test_info_reads_the_wall_time_of_new_and_older_files(tmp_path, capsys):
     """Files written before the rename carry ``wall_time_s``; ``info`` reads both names."""
-    from asperity_sim.io import write_netcdf
+    from asperity_sim.output.netcdf import write_netcdf
 
     scene = Path(__file__).resolve().parent.parent / "scenarios" / "three_step_S1.toml"
     out = tmp_path / "new.nc"

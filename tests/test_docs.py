@@ -41,7 +41,7 @@ def test_readme_is_a_short_front_door_with_the_ci_test_command():
 
 
 def test_readme_scene_example_is_a_valid_scene(tmp_path):
-    from asperity_sim.scene import load_scene
+    from asperity_sim.runs.scene import load_scene
 
     (toml,) = _blocks(README, "toml")
     scene_file = tmp_path / "my_scene.toml"
@@ -52,7 +52,7 @@ def test_readme_scene_example_is_a_valid_scene(tmp_path):
 
 def test_version_is_the_same_everywhere_and_in_the_changelog():
     import asperity_sim
-    from asperity_sim.scene import tomllib  # the standard library's, or tomli on Python 3.10
+    from asperity_sim.runs.scene import tomllib  # the standard library's, or tomli on Python 3.10
 
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
     assert project["version"] == asperity_sim.__version__

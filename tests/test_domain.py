@@ -1,4 +1,4 @@
-"""The paper law's domain (asperity_sim.domain): a run that leaves it warns once and records where."""
+"""The paper law's domain (asperity_sim.solve.domain): a run that leaves it warns once and records where."""
 
 import warnings
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from asperity_sim import LawDomainWarning, paths, presets, simulate
-from asperity_sim.domain import LOOP_WORK, NORMAL_CHANGE, SHEAR_TURN
+from asperity_sim.solve.domain import LOOP_WORK, NORMAL_CHANGE, SHEAR_TURN
 
 um = 1e-6
 S, D = paths.STRESS, paths.DISPLACEMENT

@@ -20,11 +20,11 @@ from scipy import integrate, special
 
 import asperity_sim
 import asperity_sim.reference as reference
-from asperity_sim import Population, SolverSettings, paths, presets, simulate
-from asperity_sim.io import params_from_attrs, read_netcdf, write_netcdf
+from asperity_sim import evaluate, paths, Population, presets, simulate, SolverSettings
+from asperity_sim.output.netcdf import params_from_attrs, read_netcdf, write_netcdf
 from asperity_sim.paths import LoadPath, Stage
 from asperity_sim.testing import single_thread
-from asperity_sim.variables import ASPERITY_VARIABLES, SNAPSHOT_VARIABLES, STEP_VARIABLES
+from asperity_sim.output.variables import ASPERITY_VARIABLES, SNAPSHOT_VARIABLES, STEP_VARIABLES
 
 N_POP = 20_000
 RTOL = SolverSettings().rtol
@@ -187,7 +187,7 @@ def test_displacement_path_records_linear_ramp_and_evaluate(pops, three, name):
         np.stack([0 * k + d, 0 * k + d, k * d], 1)])
     np.testing.assert_allclose(disp[1:], expected, rtol=1e-14, atol=1e-20)
     for i in range(ds.sizes["step"]):
-        ev = pop.evaluate(disp[i])
+        ev = evaluate(pop, disp[i])
         scale = max(np.abs(ev.stress).max(), 1.0)
         np.testing.assert_allclose(ds.stress.values[i], ev.stress, rtol=1e-12, atol=1e-12 * scale)
         np.testing.assert_allclose(ds.stress_stderr.values[i], ev.stderr, rtol=1e-9, atol=1e-12 * scale)
@@ -220,7 +220,7 @@ def test_stress_controlled_stage_follows_linear_ramp(pops, cns, name):
     assert np.all(disp[st == 2][:, 2] == 0.0)
     # and the recorded stress is the evaluation at the recorded displacement
     for i in range(0, ds.sizes["step"], 7):
-        ev = pop.evaluate(disp[i])
+        ev = evaluate(pop, disp[i])
         np.testing.assert_allclose(ds.stress.values[i], ev.stress, rtol=1e-12, atol=1e-3)
 
 
@@ -232,7 +232,7 @@ def test_recorded_standard_errors_under_mixed_control(pops, cns, three):
     are the raw ones and no displacement error is recorded."""
     pop, ds = pops["R1"], cns["R1"]
     for i in (5, stage_end(ds, 1), stage_end(ds, 1) + 5, ds.sizes["step"] - 1):
-        ev = pop.evaluate(ds.displacement.values[i])
+        ev = evaluate(pop, ds.displacement.values[i])
         C, T = ev.covariance, ev.tangent
         np.testing.assert_allclose(np.diag(C), ev.stderr ** 2, rtol=1e-12)
         g = T[1, 0] / T[0, 0]
@@ -246,7 +246,7 @@ def test_recorded_standard_errors_under_mixed_control(pops, cns, three):
         assert dse[1] == 0.0 and dse[2] == 0.0
     d3 = three["R1"]
     for i in (10, 20, 30):
-        ev = pops["R1"].evaluate(d3.displacement.values[i])
+        ev = evaluate(pops["R1"], d3.displacement.values[i])
         np.testing.assert_allclose(d3.stress_stderr.values[i], ev.stderr, rtol=1e-9)
         assert np.all(d3.displacement_stderr.values[i] == 0.0)
 
@@ -431,7 +431,7 @@ def _ratio(ds, pop):
     err = ds.stress_stderr.values[m, 1] / s[:, 0]
     # sanity: the correlation-aware error is not larger than the crude bound e2 + |T21/T11| e1
     for k in (0, len(m) - 1):
-        ev = pop.evaluate(ds.displacement.values[m[k]])
+        ev = evaluate(pop, ds.displacement.values[m[k]])
         crude = (ev.stderr[1] + abs(ev.tangent[1, 0] / ev.tangent[0, 0]) * ev.stderr[0]) / s[k, 0]
         assert 0 < err[k] <= crude * (1 + 1e-9)
     return ds.displacement.values[m, 1], ratio, err
@@ -497,7 +497,7 @@ def test_constant_normal_shear_matches_reference(pops, cns, name):
     p = presets.TABLE1[name]
     for i in (stage_end(ds, 1), stage_end(ds, 1) + 2, ds.sizes["step"] // 2 + 5, ds.sizes["step"] - 1):
         ref = reference.stress(p, ds.displacement.values[i])
-        mc, se = ds.stress.values[i], pops[name].evaluate(ds.displacement.values[i]).stderr
+        mc, se = ds.stress.values[i], evaluate(pops[name], ds.displacement.values[i]).stderr
         assert np.all(np.abs(mc - ref) <= Z * se + 1e-5 * np.abs(ref).max()), (i, mc, ref, se)
 
 
@@ -698,7 +698,7 @@ def test_policy_birth_runs_under_mixed_control():
 @pytest.fixture
 def no_work(monkeypatch):
     """Make any evaluation an error, so a ValueError proves the input was rejected first."""
-    import asperity_sim.driver as drv
+    import asperity_sim.solve.run as drv
 
     def boom(*a, **k):
         raise AssertionError("simulate started working before rejecting its input")
@@ -740,7 +740,7 @@ def test_bad_settings_or_population_type_raise_value_error(no_work, kw):
 
 def run_both(monkeypatch, params, path, n, **kw):
     """(batched run, stepwise run, rows evaluated in batches) of the same population and arguments."""
-    from asperity_sim import driver
+    from asperity_sim.solve import run as driver
 
     pop = Population.sample(params, n, seed=4, sampler="sobol")
     rows = []
@@ -789,7 +789,7 @@ def test_batches_follow_adaptive_increments_and_leave_stress_control_to_the_loop
 
 
 def test_batches_stop_before_checkpoints_and_the_checkpoints_match(monkeypatch, tmp_path):
-    from asperity_sim import checkpoint as ckpt
+    from asperity_sim.output import checkpoint as ckpt
 
     path = paths.three_step(15e-6, 7)
     a, b = tmp_path / "a.npz", tmp_path / "b.npz"
@@ -807,7 +807,7 @@ def test_batches_stop_before_checkpoints_and_the_checkpoints_match(monkeypatch, 
 
 def test_a_non_finite_batch_row_is_left_to_the_loop(monkeypatch):
     """A batch keeps the rows before the first non-finite one; the loop redoes that increment itself."""
-    from asperity_sim import driver
+    from asperity_sim.solve import run as driver
 
     real = driver.evaluate_steps
 
@@ -827,8 +827,8 @@ def test_a_non_finite_batch_row_is_left_to_the_loop(monkeypatch):
 
 def test_no_batches_with_a_progress_callback_or_a_large_population(monkeypatch):
     """Each increment reaches the callback in order; populations beyond the serial kernels run the loop."""
-    from asperity_sim import driver
-    from asperity_sim.assemble import CHUNK, SERIAL_CHUNKS
+    from asperity_sim.solve import run as driver
+    from asperity_sim.kernels.layout import CHUNK, SERIAL_CHUNKS
 
     monkeypatch.setattr(driver, "evaluate_steps", lambda *a: pytest.fail("batch used"))
     seen = []
@@ -840,8 +840,8 @@ def test_no_batches_with_a_progress_callback_or_a_large_population(monkeypatch):
 def test_an_interruption_after_a_batch_checkpoints_the_loops_state(monkeypatch, tmp_path):
     """Interrupted right after the first batch (steps 1-9), the run saves the state the loop has after
     step 9 (its position and cubic-predictor point included), and resumes to the uninterrupted result."""
-    from asperity_sim import checkpoint as ckpt
-    from asperity_sim import driver
+    from asperity_sim.output import checkpoint as ckpt
+    from asperity_sim.solve import run as driver
 
     class Stop(Exception):
         pass

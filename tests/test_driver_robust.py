@@ -14,7 +14,7 @@ S, D = paths.STRESS, paths.DISPLACEMENT
 
 
 def test_wall_time_is_honoured_inside_an_increment(monkeypatch):
-    from asperity_sim import driver
+    from asperity_sim.solve import run as driver
 
     real = driver.evaluate_unchecked
 
@@ -33,7 +33,7 @@ def test_wall_time_is_honoured_inside_an_increment(monkeypatch):
 
 @pytest.mark.parametrize("where", ["folder", "under_a_file"])
 def test_output_paths_are_checked_before_any_work(tmp_path, where, monkeypatch):
-    from asperity_sim import driver
+    from asperity_sim.solve import run as driver
 
     monkeypatch.setattr(driver, "evaluate_unchecked", lambda *a, **k: pytest.fail("work started"))
     if where == "folder":
@@ -51,7 +51,7 @@ def test_seed_beyond_64_bits_is_refused_up_front():
 
 
 def test_a_failed_write_keeps_the_result_and_names_the_path(tmp_path, monkeypatch):
-    from asperity_sim import io
+    from asperity_sim.output import netcdf as io
 
     def broken(ds, path):
         raise OSError("disk full")
@@ -66,7 +66,7 @@ def test_a_failed_write_keeps_the_result_and_names_the_path(tmp_path, monkeypatc
 
 
 def test_a_stopped_run_keeps_its_own_error_when_the_write_fails(tmp_path, monkeypatch):
-    from asperity_sim import io
+    from asperity_sim.output import netcdf as io
 
     monkeypatch.setattr(io, "write_netcdf", lambda ds, path: (_ for _ in ()).throw(OSError("disk full")))
     path = paths.LoadPath((paths.Stage((S, D, D), (100e6, 0, 0), 2), paths.Stage((S, S, D), (100e6, 1e12, 0), 2)))

@@ -184,7 +184,7 @@ def test_local_displacement_limits():
 
 def test_series_trigonometry_matches_libm():
     """The libm-free sin, cos and arccos of the vectorised kernel against numpy (libm), to 4 ulp."""
-    from asperity_sim.geometry import acos_unit, sin_cos_quarter
+    from asperity_sim.vectormath import acos_unit, sin_cos_quarter
 
     x = np.concatenate([np.linspace(0.0, HALF_PI, 4001), [1e-300, 1e-8, HALF_PI]])
     sc = np.array([sin_cos_quarter(v) for v in x])
@@ -199,7 +199,7 @@ def test_series_trigonometry_matches_libm():
 def test_fsqrt_is_the_correctly_rounded_square_root():
     import numba
 
-    from asperity_sim.geometry import fsqrt
+    from asperity_sim.vectormath import fsqrt
 
     root = numba.njit(lambda v: fsqrt(v))
     x = np.concatenate([np.geomspace(1e-300, 1e300, 2001), [0.0, 1.0, 2.0, np.nextafter(1.0, 2.0)]])

@@ -7,7 +7,7 @@ import numba
 import numpy as np
 import pytest
 
-from asperity_sim import gridmethod as gm
+from asperity_sim.analysis import gridmethod as gm
 from asperity_sim import paths, presets, reference
 
 um = 1e-6

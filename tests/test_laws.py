@@ -6,10 +6,10 @@ import numba
 import numpy as np
 import pytest
 
-from asperity_sim import Population, laws, paths, presets, simulate
-from asperity_sim.assemble import evaluate
+from asperity_sim import laws, paths, Population, presets, simulate
+from asperity_sim.kernels.evaluate import evaluate
 from asperity_sim.laws.hertz import hertz
-from asperity_sim.state import ContactState
+from asperity_sim.kernels.state import ContactState
 
 um = 1e-6
 R1 = presets.R1
@@ -163,7 +163,7 @@ def test_same_bits_on_one_and_two_threads(law):
 def test_energy_balance_closes(law):
     """History laws: external work = stored energy + dissipation on a cyclic path, dissipation never decreases."""
     if laws.get(law).history is None:
-        pytest.skip("a path-independent law keeps no energy account (its domain is checked by asperity_sim.domain)")
+        pytest.skip("a path-independent law keeps no energy account (its domain is checked by asperity_sim.solve.domain)")
     S, D = paths.STRESS, paths.DISPLACEMENT
     path = paths.LoadPath((paths.Stage((S, D, D), (300e6, 0, 0), 6), paths.Stage((S, D, D), (300e6, 3 * um, 0), 6),
                            paths.Stage((S, D, D), (300e6, -3 * um, 1 * um), 8)), name="cycle")

@@ -271,7 +271,8 @@ def test_block_table_of_contact_scales_is_the_per_contact_one():
     ``contact_scales`` for each contact in contact (to round-off: vector code may fuse other products;
     the spring counts exactly), and finite values for a slot out of contact or free (h = 0): the
     prefetch reads the counts of every column."""
-    from asperity_sim.laws import mdr
+    from asperity_sim.laws.mdr import blocks, springs
+    from asperity_sim.laws.mdr import trial as mdr_trial
 
     rng = np.random.default_rng(3)
     m = 37  # not a whole number of vectors: the loop's remainder is covered
@@ -288,22 +289,23 @@ def test_block_table_of_contact_scales_is_the_per_contact_one():
     for i in range(m):
         if dn[i] <= 0.0 or h[i] == 0.0:
             continue
-        expect = np.array(mdr.contact_scales(dn[i], dn_c[i], R_[i], h[i], E_STAR, LAM), dtype=float)
-        other = np.arange(mdr.N_SCALES) != mdr.S_DRHO
+        expect = np.array(mdr_trial.contact_scales(dn[i], dn_c[i], R_[i], h[i], E_STAR, LAM), dtype=float)
+        other = np.arange(blocks.N_SCALES) != blocks.S_DRHO
         np.testing.assert_allclose(sc[other, i], expect[other], rtol=1e-13, atol=0, err_msg=str(i))
         # d rho / d dn = rho (1.5 / dn - n / sum u): a difference, so round-off relative to its terms
-        np.testing.assert_allclose(sc[mdr.S_DRHO, i], expect[mdr.S_DRHO], rtol=0,
-                                   atol=1e-13 * abs(expect[mdr.S_RHO]) * 1.5 / dn[i], err_msg=str(i))
-        assert sc[mdr.S_NIN, i] == expect[mdr.S_NIN] and sc[mdr.S_NC, i] == expect[mdr.S_NC]
+        np.testing.assert_allclose(sc[blocks.S_DRHO, i], expect[blocks.S_DRHO], rtol=0,
+                                   atol=1e-13 * abs(expect[blocks.S_RHO]) * 1.5 / dn[i], err_msg=str(i))
+        assert sc[blocks.S_NIN, i] == expect[blocks.S_NIN] and sc[blocks.S_NC, i] == expect[blocks.S_NC]
 
 
 def numba_block_scales():
     import numba
 
-    from asperity_sim.laws import mdr
+    from asperity_sim.laws.mdr import blocks, springs
+    from asperity_sim.laws.mdr import trial as mdr_trial
 
-    @numba.njit(error_model="numpy", fastmath=mdr.FAST)
+    @numba.njit(error_model="numpy", fastmath=springs.FAST)
     def run(dn, dn_c, R_, h, b0, m, E_star, lam):
-        return mdr.block_scales(dn, dn_c, R_, h, b0, m, E_star, lam)
+        return blocks.block_scales(dn, dn_c, R_, h, b0, m, E_star, lam)
 
     return run

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from asperity_sim import paths
-from asperity_sim.paths import DISPLACEMENT, STRESS, LoadPath, Stage
+from asperity_sim.paths import DISPLACEMENT, LoadPath, Stage, STRESS
 
 D, S = DISPLACEMENT, STRESS
 
@@ -271,7 +271,8 @@ def test_smallest_allowed_fraction_and_the_budget():
 
 
 def test_tiny_fraction_in_a_scene_file_is_refused():
-    from asperity_sim.scene import SceneError, scene_from_dict
+    from asperity_sim.errors import SceneError
+    from asperity_sim.runs.scene import scene_from_dict
 
     data = {"parameters": {"preset": "S1"},
             "path": {"stages": [{"increments": 3, "Delta_1": "2 um", "Delta_2": "0 um", "Delta_3": "0 um",

@@ -1,4 +1,4 @@
-"""The figures (asperity_sim.plotting) say what their bands are, mark computed points and draw
+"""The figures (asperity_sim.output.plotting) say what their bands are, mark computed points and draw
 only the run's physics; checked on the Figure objects (matplotlib Agg)."""
 
 import matplotlib
@@ -9,7 +9,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
-from asperity_sim import Population, paths, plotting, presets, simulate  # noqa: E402
+from asperity_sim import paths, Population, presets, simulate
+from asperity_sim.output import plotting  # noqa: E402
 from asperity_sim.paths import LoadPath, Stage  # noqa: E402
 
 SE_STATEMENT = "±2 SE"  # the documented convention: bands are ± 2 standard errors

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 from scipy import integrate, optimize, stats
 
-from asperity_sim import presets
+from asperity_sim import evaluate, presets
 from asperity_sim.params import InterfaceParams
-from asperity_sim.population import Population, orientation_from_uniform, unit_points
+from asperity_sim.sampling.distributions import orientation_from_uniform
+from asperity_sim.sampling.draws import unit_points
+from asperity_sim.sampling.population import Population
 
 P_MIN = 1e-4  # significance of every goodness-of-fit test (fixed seeds)
 N_MC = 100_000
@@ -480,7 +482,7 @@ def test_tabulated_height_quantile_matches_gammaincinv(alpha):
     scipy's inverse is the reference, and the fallback where a table is not accurate."""
     from scipy import special
 
-    from asperity_sim.population import _quantile_table, heights_from_uniform
+    from asperity_sim.sampling.distributions import heights_from_uniform, quantile_table as _quantile_table
 
     if alpha > -0.9:  # all three pieces are accurate enough to be used, the tails included
         assert np.all(_quantile_table(alpha + 1.0)[1][[2, 5, 8]] > 0)
@@ -494,7 +496,7 @@ def test_tabulated_height_quantile_matches_gammaincinv(alpha):
 
 
 def test_linear_time_argsort_of_unit_points_is_numpys_stable_argsort():
-    from asperity_sim.population import _argsort_unit
+    from asperity_sim.sampling.draws import argsort_unit as _argsort_unit
 
     rng = np.random.default_rng(11)
     for p in (rng.random(50_000), np.repeat(rng.random(500), 7), np.zeros(10), np.array([0.5])):
@@ -505,22 +507,24 @@ def test_linear_time_argsort_of_unit_points_is_numpys_stable_argsort():
                                            (ISO.replace(alpha=-0.5), 3e-6)])
 def test_sobol_population_generated_in_height_order_equals_the_sorted_points(params, r_max):
     """Sobol', n = 2^m: the points are generated directly in increasing order of the height
-    uniform (asperity_sim.sobol.net_directions).  Same bits as sorting sobol_points by it and
+    uniform (asperity_sim.sampling.sobol.net_directions).  Same bits as sorting sobol_points by it and
     mapping each through the inverse CDFs; several parallel blocks, on 1 and 2 threads."""
     import numba
 
-    from asperity_sim import population as P
+    from scipy import special
+
+    from asperity_sim.sampling import distributions, draws, sobol
 
     for m, seed in ((0, 2), (5, 0), (14, 3)):  # 2^14 spans four blocks of NET_BLOCK
         n = 2**m
-        U = P.sobol_points(n, seed)
+        U = sobol.sobol_points(n, seed)
         arrays = [np.ascontiguousarray(U[np.argsort(U[:, 0], kind="stable"), k]) for k in range(4)] + [np.empty(n)]
         r, R, u, cos_phi, sin_phi = arrays
-        p_band = P.band_probability(params, r_max)
-        P._inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, *P._quantile_table(params.alpha + 1.0), True,
-                        *P._radius_constants(params), params.b, params.c, params.d)
+        p_band = distributions.band_probability(params, r_max)
+        draws.inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, *distributions.quantile_table(params.alpha + 1.0), True,
+                        *distributions.radius_constants(params), params.b, params.c, params.d)
         tail = np.signbit(r)
-        r[tail] = P.special.gammaincinv(params.alpha + 1.0, -r[tail])
+        r[tail] = special.gammaincinv(params.alpha + 1.0, -r[tail])
         r = np.maximum.accumulate(np.minimum(r * params.beta, math.inf if r_max is None else r_max))
         before = numba.get_num_threads()
         try:
@@ -538,7 +542,7 @@ def test_normal_quantile_matches_scipy_ndtri():
     import numba
     from scipy import special
 
-    from asperity_sim.population import _ndtri_at
+    from asperity_sim.sampling.distributions import _ndtri_at
 
     @numba.njit
     def quantiles(p):
@@ -571,7 +575,7 @@ def test_direct_construction_of_a_sampled_population_is_accepted():
     pop = _direct()
     ref = Population.sample(ISO, 64, seed=5)
     assert np.array_equal(pop.r, ref.r)
-    assert pop.evaluate(np.array([3e-6, 0.0, 0.0])).stress[0] > 0
+    assert evaluate(pop, np.array([3e-6, 0.0, 0.0])).stress[0] > 0
 
 
 def _swapped(a, i, j):

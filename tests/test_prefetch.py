@@ -4,7 +4,7 @@ import numba
 import numpy as np
 import pytest
 
-from asperity_sim.prefetch import prefetch
+from asperity_sim.vectormath import prefetch
 
 
 @numba.njit

@@ -26,9 +26,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import asperity_sim as asim
-import asperity_sim.driver as driver
-from asperity_sim import InterfaceParams, Population, SolverSettings, paths, presets, simulate
-from asperity_sim.assemble import evaluate
+import asperity_sim.solve.driver as driver
+import asperity_sim.solve.run as run_module
+from asperity_sim import InterfaceParams, paths, Population, presets, simulate, SolverSettings
+from asperity_sim.kernels.evaluate import evaluate
 from asperity_sim.paths import LoadPath, Stage
 
 N_VALID = 300
@@ -268,7 +269,7 @@ def _no_work(*args, **kwargs):
 def test_invalid_configurations_raise_value_error_naming_the_value(call):
     label, f, word = call
     no_sampling = label.startswith("simulate")
-    with mock.patch.object(driver, "evaluate_unchecked", _no_work), \
+    with mock.patch.object(run_module, "evaluate_unchecked", _no_work), \
             mock.patch.object(driver.Population, "sample", _no_work if no_sampling else Population.sample):
         with pytest.raises(ValueError) as exc:
             f()

@@ -1,4 +1,4 @@
-"""Derived joint properties (asperity_sim.properties) and envelopes (asperity_sim.envelope).
+"""Derived joint properties (asperity_sim.analysis.properties) and envelopes (asperity_sim.runs.envelope).
 
 Synthetic datasets whose answers are known in closed form: an elastic / softening shear
 curve with a quadratic normal displacement (peak, residual, dilation exact), rotated
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from asperity_sim import properties as P
-from asperity_sim.variables import PROPERTY_VARIABLES
+from asperity_sim.analysis import properties as P
+from asperity_sim.output.variables import PROPERTY_VARIABLES
 
 
 # -- synthetic datasets ------------------------------------------------------------------
@@ -202,13 +202,15 @@ def test_every_property_is_registered_with_units():
         assert name == "property_note" or var.attrs.get("units"), name
 
 
-# -- sweeps over the load path (asperity_sim.sweep) ---------------------------------------
+# -- sweeps over the load path (asperity_sim.runs.sweep) ---------------------------------------
 
 from pathlib import Path  # noqa: E402
 
 from asperity_sim import paths, presets  # noqa: E402
-from asperity_sim.scene import Scene, SceneError  # noqa: E402
-from asperity_sim import sweep as SW  # noqa: E402
+from asperity_sim.errors import SceneError  # noqa: E402
+from asperity_sim.runs.scene import Scene  # noqa: E402
+from asperity_sim.runs import engine as EN  # noqa: E402
+from asperity_sim.runs import sweep as SW  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 S_, D_ = paths.STRESS, paths.DISPLACEMENT
@@ -274,11 +276,11 @@ def test_path_sweep_runs_pads_shorter_paths_and_keeps_failed_points():
     unreachable = paths.LoadPath((paths.Stage((S_, D_, D_), (1e6, 0, 0), 2, name="normal"),
                                   paths.Stage((S_, S_, D_), (1e6, 5e6, 0), 2, name="shear")), name="too much")
     sw = SW.Sweep(scene=scene, grid={"cycles": (1, 2), "sigma_n": (1e6, 50e6)}, seeds=(1,))
-    ds = SW.run_sweep(sw, scheduler="serial")
+    ds = EN.run_sweep(sw, scheduler="serial")
     assert ds.sizes["step"] == 2 + 2 * 2 * 2 + 1 and ds["stress"].dims[:3] == ("cycles", "sigma_n", "replica")
     assert np.isnan(ds["stress"].sel(cycles=1).values[:, :, 7:]).all()
     assert np.isfinite(ds["stress"].sel(cycles=2).values).all()
-    bad = SW.run_sweep(SW.Sweep(scene=scene.replace(path=unreachable), grid={"sigma_n": (1e6, 500e6)}, seeds=(1,)),
+    bad = EN.run_sweep(SW.Sweep(scene=scene.replace(path=unreachable), grid={"sigma_n": (1e6, 500e6)}, seeds=(1,)),
                        scheduler="serial")
     status = bad["status"].values[:, 0]
     assert status[0].startswith("failed: StressNotReachableError") and status[1] == "complete"
@@ -292,23 +294,25 @@ def test_auto_engine_picks_serial_for_small_and_cluster_for_large_sweeps():
     small = [scene] * 4
     big_runs = [scene.replace(n=200_000, law="mdr", k=16)] * 8  # kernels use both cores serially already
     many_small = [scene.replace(n=500, law="mdr", k=8)] * 400  # Python-side work side by side pays the start
-    assert SW.choose_engine(small, workers=2, cpus=2)[0] == "serial"
-    assert SW.choose_engine(big_runs, workers=2, cpus=2)[0] == "serial"
-    choice, reason = SW.choose_engine(many_small, workers=2, cpus=2)
+    assert EN.choose_engine(small, workers=2, cpus=2)[0] == "serial"
+    assert EN.choose_engine(big_runs, workers=2, cpus=2)[0] == "serial"
+    choice, reason = EN.choose_engine(many_small, workers=2, cpus=2)
     assert choice == "local" and reason.startswith("auto: estimated")
-    assert SW.choose_engine(many_small, workers=2, cpus=1)[0] == "serial"  # one core: nothing to share
-    assert SW.choose_engine(many_small[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
+    assert EN.choose_engine(many_small, workers=2, cpus=1)[0] == "serial"  # one core: nothing to share
+    assert EN.choose_engine(many_small[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
     # the model: serial = sum of runs on all threads; cluster = start + runs on cpus // workers threads, shared
-    one = SW.estimate_run_seconds(many_small[0], 2)
-    assert one == pytest.approx(120 * (SW.COST_PER_INCREMENT["mdr"] + 8 * SW.COST_PER_ASPERITY_INCREMENT["mdr"] * 250))
-    ds = SW.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
+    one = EN.estimate_run_seconds(many_small[0], 2)
+    assert one == pytest.approx(120 * (EN.COST_PER_INCREMENT["mdr"] + 8 * EN.COST_PER_ASPERITY_INCREMENT["mdr"] * 250))
+    ds = EN.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
     assert ds.attrs["engine"].startswith("serial") and "auto: estimated" in ds.attrs["engine"]
 
 
-# -- envelopes and cycles (asperity_sim.envelope) ----------------------------------------
+# -- envelopes and cycles (asperity_sim.runs.envelope) ----------------------------------------
 
-from asperity_sim import cli, envelope as E  # noqa: E402
-from asperity_sim.io import read_netcdf  # noqa: E402
+from asperity_sim.runs import envelope as E  # noqa: E402
+from asperity_sim.runs import figures as F  # noqa: E402
+from asperity_sim.ui import cli, exits  # noqa: E402
+from asperity_sim.output.netcdf import read_netcdf  # noqa: E402
 
 
 def test_mohr_coulomb_fit_recovers_c_and_phi_and_its_intervals_cover_the_truth():
@@ -409,7 +413,7 @@ def test_envelope_function_dataset_csv_and_figure(tmp_path):
     assert f.mc_friction_angle_low <= f.mc_friction_angle <= f.mc_friction_angle_high
     for name, var in ds.data_vars.items():
         assert var.attrs.get("long_name"), name
-    files = E.write_products(ds, tmp_path / "env.nc")
+    files = F.write_products(ds, tmp_path / "env.nc")
     back = read_netcdf(files["netcdf"])
     assert back.attrs["product"] == "envelope" and back["peak_shear_stress_mean"].attrs["units"] == "Pa"
     rows = [r for r in files["csv"].read_text().splitlines() if not r.startswith("#")]
@@ -441,7 +445,7 @@ def test_envelope_and_cyclic_commands(tmp_path, monkeypatch, capsys):
         (["cyclic", "cns.toml", "--amplitude", "1 MPa"], "--amplitude = '1 MPa': expected a length (m), got a stress"),
         (["cyclic", "cns.toml", "--amplitude", "1 um", "--sigma-n", "-3 MPa"], "--sigma-n = '-3 MPa' is out of range"),
     ]:
-        assert cli.main(argv) == cli.EXIT_INPUT
+        assert cli.main(argv) == exits.EXIT_INPUT
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err, err
 
@@ -501,8 +505,8 @@ def test_path_sweep_with_a_failing_point_gives_the_same_bits_on_a_local_cluster(
                                   paths.Stage((S_, S_, D_), (1e6, 5e6, 0), 2, name="shear")), name="too much")
     scene = Scene(params=presets.S1, path=unreachable, n=300, seed=1)
     sw = SW.Sweep(scene=scene, grid={"sigma_n": (1e6, 500e6), "cycles": (1, 2)}, seeds=(1, 2))
-    serial = SW.run_sweep(sw, scheduler="serial")
-    dask = SW.run_sweep(sw, scheduler="local", workers=2)
+    serial = EN.run_sweep(sw, scheduler="serial")
+    dask = EN.run_sweep(sw, scheduler="local", workers=2)
     assert dask.attrs["engine"].startswith("dask LocalCluster")
     assert np.array_equal(serial["status"].values, dask["status"].values)
     assert (serial["status"].sel(sigma_n=1e6).values != "complete").all()
@@ -551,7 +555,7 @@ def test_envelope_command_with_a_failing_point_writes_the_others_and_exits_3(tmp
     (tmp_path / "f.toml").write_text(FAILING_SCENE)
     code = cli.main(["envelope", "f.toml", "--sigma-n", "1 MPa:100 MPa:3:log", "--replicas", "2", "--serial"])
     out, err = capsys.readouterr()
-    assert code == cli.EXIT_FAILED and "wrote f_envelope.nc" in out
+    assert code == exits.EXIT_FAILED and "wrote f_envelope.nc" in out
     assert "2 of 6 runs did not complete" in err and "StressNotReachableError" in err and len(err.splitlines()) == 1
     ds = read_netcdf(tmp_path / "f_envelope.nc")
     assert np.isnan(ds["peak_shear_stress"].values[0]).all() and np.isfinite(ds["peak_shear_stress"].values[1:]).all()

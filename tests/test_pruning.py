@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
-from asperity_sim import Population, paths, presets, reference, simulate
-from asperity_sim.assemble import birth_angles, evaluate, snapshot
-from asperity_sim.population import band_probability
-from asperity_sim.pruning import (band_for_path, check_band, reach_along, reach_height, simulate_pruned,
-                                  theta_bound)
+from asperity_sim import paths, Population, presets, reference, simulate
+from asperity_sim.kernels.commit import birth_angles
+from asperity_sim.kernels.evaluate import evaluate, snapshot
+from asperity_sim.sampling.distributions import band_probability
+from asperity_sim.sampling.band import band_for_path, check_band, reach_along, reach_height, theta_bound
+from asperity_sim.solve.pruning import simulate_pruned
 
 um = 1e-6
 R1, S1, R2 = presets.R1, presets.S1, presets.R2

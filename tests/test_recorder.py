@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from asperity_sim.recorder import Recorder
-from asperity_sim.variables import STEP_VARIABLES
+from asperity_sim.output.recorder import Recorder
+from asperity_sim.output.variables import STEP_VARIABLES
 
 
 def rows(m, rng):
@@ -51,7 +51,7 @@ def test_extend_broadcasts_one_value_and_names_a_missing_variable():
 
 
 def test_dataset_from_the_cached_template_is_the_constructors_and_shares_nothing_mutable():
-    from asperity_sim import recorder
+    from asperity_sim.output import recorder
 
     rng = np.random.default_rng(2)
     rec = Recorder(5)

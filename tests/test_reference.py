@@ -21,6 +21,7 @@ import pytest
 from scipy import integrate, special, stats
 
 import asperity_sim.reference as ref
+from asperity_sim.reference import integrand
 from asperity_sim.presets import R1, R2, S1, S2
 
 um = 1e-6
@@ -474,7 +475,7 @@ def test_phi_breaks_find_every_change_of_structure():
         th = rng.uniform(0.0, 0.5 * math.pi)
         ct, st = math.cos(th), math.sin(th)
         m = rng.choice([0.0, rng.uniform(0.05, 1.5)])
-        nb = ref._phi_breaks(d1, S, ct, st, m, out)
+        nb = integrand._phi_breaks(d1, S, ct, st, m, out)
         breaks = np.sort(out[:nb])
         assert np.all((breaks > 0) & (breaks < math.pi))
         phi = np.linspace(1e-6, math.pi - 1e-6, 20001)

@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from asperity_sim import paths, presets
-from asperity_sim.scene import (SceneError, format_quantity, load_scene, parse_quantity, scale_increments,
-                                scene_from_dict)
+from asperity_sim.errors import SceneError
+from asperity_sim.runs.scene import load_scene, scale_increments, scene_from_dict
+from asperity_sim.units import format_quantity, parse_quantity
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 SHIPPED = sorted(p for p in SCENARIOS.glob("*.toml") if not p.name.startswith("sweep_"))

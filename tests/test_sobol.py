@@ -1,12 +1,12 @@
-"""Scrambled Sobol' points (asperity_sim.sobol): scipy's unscrambled sequence, net structure, unbiasedness."""
+"""Scrambled Sobol' points (asperity_sim.sampling.sobol): scipy's unscrambled sequence, net structure, unbiasedness."""
 
 import numba
 import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from asperity_sim import sobol
-from asperity_sim.sobol import sobol_points
+from asperity_sim.sampling import sobol
+from asperity_sim.sampling.sobol import sobol_points
 
 
 def t_value(x, y, m):

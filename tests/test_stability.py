@@ -32,9 +32,9 @@ import numpy as np
 import pytest
 
 import asperity_sim as asim
-from asperity_sim import Population, SolverSettings, StressNotReachableError, paths, presets, simulate, stability
+from asperity_sim import paths, Population, presets, simulate, SolverSettings, stability, StressNotReachableError
 from asperity_sim.paths import LoadPath, Stage
-from asperity_sim.solver import SolveResult
+from asperity_sim.solve.solver import SolveResult
 
 STUDY = Path(__file__).resolve().parent.parent / "studies" / "stability.py"
 
@@ -118,7 +118,7 @@ def test_study_writes_netcdf_and_markdown(tmp_path):
     done = run_study("--quick", "--n", "200", "--increments", "2", "--only", "mu=0", "--only", "forged",
                      "--in-process", "--outdir", str(tmp_path))
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-    from asperity_sim.io import read_netcdf
+    from asperity_sim.output.netcdf import read_netcdf
 
     ds = read_netcdf(tmp_path / "stability.nc")
     assert ds.sizes["run"] >= 10 and ds.sizes["hostile"] == 6
@@ -330,7 +330,7 @@ class Quantised:
         self.x0, self.T, self.A, self.calls = x0, T, A, 0
 
     def __call__(self, delta):
-        from asperity_sim.assemble import Evaluation
+        from asperity_sim.kernels.evaluate import Evaluation
 
         self.calls += 1
         x = float(delta[0])
@@ -345,7 +345,7 @@ class Quantised:
 
 
 def test_quantised_stress_converges_at_the_resolution_of_delta():
-    from asperity_sim.solver import solve_increment
+    from asperity_sim.solve.solver import solve_increment
 
     f = Quantised()
     free, target = np.array([True, False, False]), np.array([1.0, 0.0, 0.0])
@@ -359,7 +359,7 @@ def test_quantised_stress_converges_at_the_resolution_of_delta():
 
 
 def test_quantised_stress_fails_by_name_when_resolution_is_not_accepted():
-    from asperity_sim.solver import solve_increment
+    from asperity_sim.solve.solver import solve_increment
 
     f = Quantised()
     free, target = np.array([True, False, False]), np.array([1.0, 0.0, 0.0])
@@ -399,7 +399,7 @@ def test_wall_time_limit_stops_with_a_named_error_and_keeps_results(tmp_path):
 def test_adaptive_stage_never_shrinks_below_the_smallest_increment(monkeypatch):
     """An adaptive stage whose increments all converge slowly (> 8 iterations) halves its increment each time;
     it must stop halving at the smallest increment, so the stage ends in a bounded number of steps."""
-    import asperity_sim.driver as drv
+    import asperity_sim.solve.run as drv
 
     def slow_but_converged(evaluate, guess, free, target, L, settings):
         return SolveResult(True, 20, 0.0, 0.5, "converged", evaluate(guess))

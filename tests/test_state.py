@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from asperity_sim import Population, paths, presets, reference, simulate
-from asperity_sim.assemble import Workspace, evaluate
-from asperity_sim.state import ContactState
+from asperity_sim import paths, Population, presets, reference, simulate
+from asperity_sim.kernels.evaluate import evaluate, Workspace
+from asperity_sim.kernels.state import ContactState
 
 um = 1e-6
 R1, S1 = presets.R1, presets.S1

@@ -16,11 +16,11 @@ import pytest
 import xarray as xr
 
 import asperity_sim as asim
-from asperity_sim import Population, SolverSettings, StressNotReachableError, paths, presets, simulate
-from asperity_sim.io import read_netcdf
+from asperity_sim import evaluate, paths, Population, presets, simulate, SolverSettings, StressNotReachableError
+from asperity_sim.output.netcdf import read_netcdf
 from asperity_sim.paths import LoadPath, Stage
 from asperity_sim.testing import single_thread
-from asperity_sim.variables import STEP_VARIABLES
+from asperity_sim.output.variables import STEP_VARIABLES
 
 S, D = paths.STRESS, paths.DISPLACEMENT
 RTOL = SolverSettings().rtol
@@ -52,7 +52,7 @@ def test_adaptive_stage_ends_exactly_on_target():
 def test_cubic_predictor_is_third_order_on_a_smooth_path_and_falls_back_at_a_kink():
     """The Hermite extrapolation from two converged points (values and exact slopes) has an
     error O(h^4), far below the tangent predictor's O(h^2); at a slope jump it keeps the tangent."""
-    from asperity_sim.stepping import _cubic_predict, _Position
+    from asperity_sim.solve.stepping import cubic_predictor as _cubic_predict, Position as _Position
 
     def x(s):
         return np.array([np.exp(s), 0.0, np.sin(3.0 * s)])
@@ -80,19 +80,19 @@ def test_cubic_predictor_is_third_order_on_a_smooth_path_and_falls_back_at_a_kin
 
 def test_cubic_predictor_saves_newton_iterations_on_the_fig13_path():
     """Same converged curve (to the solver tolerance) with fewer iterations than the tangent predictor alone."""
-    from asperity_sim import driver
+    from asperity_sim.solve import run as driver
 
     p = presets.R1
     path = paths.constant_normal_shear(500e6, 50e-6, 20)
     pop = Population.sample(p, 2**14, seed=3, sampler="sobol")
     settings = SolverSettings(rtol=1e-9)
     cubic = simulate(p, path, population=pop, settings=settings)
-    original = driver._cubic_predict
-    driver._cubic_predict = lambda linear, *args: linear
+    original = driver.cubic_predictor
+    driver.cubic_predictor = lambda linear, *args: linear
     try:
         linear = simulate(p, path, population=pop, settings=settings)
     finally:
-        driver._cubic_predict = original
+        driver.cubic_predictor = original
     assert int(cubic.iterations.sum()) < 0.9 * int(linear.iterations.sum())
     np.testing.assert_allclose(cubic.stress.values, linear.stress.values, rtol=1e-8, atol=1e-6 * 500e6)
     np.testing.assert_allclose(cubic.displacement.values, linear.displacement.values, rtol=1e-7)
@@ -157,7 +157,7 @@ def test_unreachable_shear_stress_message_names_sigma2(unreachable_R1):
 
 def _flat_contact_failure_path(pop):
     """e = 0: all contacts normal, so at fixed Delta_1 sigma_2 <= mu sigma_1 exactly (SPEC §3, §5)."""
-    s1 = pop.evaluate([10e-6, 0, 0]).stress[0]
+    s1 = evaluate(pop, [10e-6, 0, 0]).stress[0]
     return LoadPath((Stage(("d", "d", "d"), (10e-6, 0, 0), 2),
                      Stage(("d", "s", "d"), (10e-6, 3 * pop.params.mu * s1, 0), 3))), s1
 

@@ -1,4 +1,4 @@
-"""Tests of asperity_sim.surfaces: reading, composite, summits against Nayak's closed forms, fit, population.
+"""Tests of asperity_sim.analysis.surfaces: reading, composite, summits against Nayak's closed forms, fit, population.
 
 The closed forms (Nayak 1971, isotropic Gaussian surface, profile spectral moments m0, m2, m4):
     summit density  n_s = m4 / (6 pi sqrt(3) m2)        [1/m²]
@@ -25,8 +25,9 @@ import pytest
 import importlib.util
 
 from asperity_sim import presets
-from asperity_sim import surfaces as sf
-from asperity_sim.population import Population
+from asperity_sim.analysis import surfaces as sf
+from asperity_sim.analysis.surfaces import topography
+from asperity_sim.sampling.population import Population
 
 # tests that read files or generate surfaces need the optional SurfaceTopography ([surfaces] extra)
 needs_st = pytest.mark.skipif(importlib.util.find_spec("SurfaceTopography") is None,
@@ -136,17 +137,17 @@ def test_summit_definition_on_a_known_map():
 def test_plane_detrend_removes_a_tilt():
     s = _band(128, 8, 0)
     x = np.arange(128)[:, None] * 1e-8 + np.arange(128)[None, :] * 2e-8 + 3e-6
-    h = sf.detrend(s.heights + x, "plane")
-    assert np.allclose(h, sf.detrend(s.heights, "plane"), atol=1e-18)
+    h = topography.detrend(s.heights + x, "plane")
+    assert np.allclose(h, topography.detrend(s.heights, "plane"), atol=1e-18)
     with pytest.raises(ValueError, match="detrend = 'cubic'"):
-        sf.detrend(h, "cubic")
+        topography.detrend(h, "cubic")
 
 
 @needs_st
 def test_two_surfaces_sum_and_slope():
     a, b = _band(128, 8, 0), _band(128, 8, 1)
     c = sf.composite(a, b)
-    assert np.allclose(c.heights, sf.detrend(a.heights, "mean") + sf.detrend(b.heights, "mean"))
+    assert np.allclose(c.heights, topography.detrend(a.heights, "mean") + topography.detrend(b.heights, "mean"))
     sm = sf.find_summits(c)
     gx, gy = c.slopes
     i, j = np.rint(sm.x / c.pixel_size[0]).astype(int), np.rint(sm.y / c.pixel_size[1]).astype(int)
@@ -269,8 +270,8 @@ def _write_pair(tmp_path, n=256):
 
 @needs_st
 def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
-    from asperity_sim.cli import main
-    from asperity_sim.scene import load_scene
+    from asperity_sim.ui.cli import main
+    from asperity_sim.runs.scene import load_scene
 
     a, b = _write_pair(tmp_path)
     out, fig = tmp_path / "fit.toml", tmp_path / "fit.png"
@@ -289,8 +290,8 @@ def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
 
 @needs_st
 def test_cli_fit_scene_supplies_the_rest(tmp_path):
-    from asperity_sim.cli import main
-    from asperity_sim.scene import load_scene
+    from asperity_sim.ui.cli import main
+    from asperity_sim.runs.scene import load_scene
 
     a, _ = _write_pair(tmp_path, 128)
     base = tmp_path / "base.toml"
@@ -315,7 +316,7 @@ def test_cli_fit_scene_supplies_the_rest(tmp_path):
     (["s1.nc", "--min-prominence", "5 GPa"], "min-prominence"),
 ])
 def test_cli_fit_bad_input_exits_1(tmp_path, capsys, extra, message):
-    from asperity_sim.cli import main
+    from asperity_sim.ui.cli import main
 
     _write_pair(tmp_path, 64)
     (tmp_path / "junk.dat").write_text("hello\n")
@@ -332,7 +333,7 @@ def test_cli_fit_bad_input_exits_1(tmp_path, capsys, extra, message):
 @needs_st
 @pytest.mark.slow
 def test_cli_fit_scene_runs(tmp_path):
-    from asperity_sim.cli import main
+    from asperity_sim.ui.cli import main
 
     a, b = _write_pair(tmp_path, 128)
     out = tmp_path / "fit.toml"
@@ -446,7 +447,7 @@ def test_curvature_exact_on_a_paraboloid_with_rectangular_pixels():
 def test_cli_fit_without_surfacetopography_exits_1(tmp_path, capsys, monkeypatch):
     import sys
 
-    from asperity_sim.cli import main
+    from asperity_sim.ui.cli import main
 
     monkeypatch.setitem(sys.modules, "SurfaceTopography", None)
     np.savetxt(tmp_path / "m.txt", np.zeros((8, 8)))

@@ -6,11 +6,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from asperity_sim import cli, paths, presets
-from asperity_sim.io import read_netcdf
-from asperity_sim.scene import SceneError, Scene, load_scene, scale_increments
-from asperity_sim.sweep import (Sweep, align_run, ensemble_statistics, load_sweep, nominal_schedule, run_one,
-                                run_sweep)
+from asperity_sim import paths, presets
+from asperity_sim.ui import cli
+from asperity_sim.output.netcdf import read_netcdf
+from asperity_sim.errors import SceneError
+from asperity_sim.runs.scene import load_scene, scale_increments, Scene
+from asperity_sim.runs.engine import run_one, run_sweep
+from asperity_sim.runs.ensemble import align_run, ensemble_statistics, nominal_schedule
+from asperity_sim.runs.sweep import load_sweep, Sweep
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 COMPARED = ("displacement", "stress", "stress_stderr", "displacement_stderr", "tangent", "n_contact", "theta_am",
@@ -70,7 +73,7 @@ def test_local_cluster_of_2_workers_matches_serial_bit_for_bit(serial):
 
 
 def test_without_dask_runs_serially_with_a_note(monkeypatch, serial):
-    import asperity_sim.sweep as sweep_module
+    import asperity_sim.runs.engine as sweep_module
 
     monkeypatch.setattr(sweep_module, "dask_available", lambda: False)
     notes = []

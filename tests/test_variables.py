@@ -11,8 +11,8 @@ import re
 import numpy as np
 import pytest
 
-from asperity_sim import InterfaceParams, Population, paths, presets, simulate
-from asperity_sim import variables as V
+from asperity_sim import InterfaceParams, paths, Population, presets, simulate
+from asperity_sim.output import variables as V
 
 # --------------------------------------------------------------------------- a UDUNITS-2 subset
 
@@ -208,7 +208,7 @@ def _stderr_partners(ds):
 
 @pytest.fixture(scope="module")
 def written(runs, tmp_path_factory):
-    from asperity_sim.io import read_netcdf, write_netcdf
+    from asperity_sim.output.netcdf import read_netcdf, write_netcdf
 
     folder = tmp_path_factory.mktemp("written")
     return {which: read_netcdf(write_netcdf(ds, folder / f"{which}.nc")) for which, ds in runs.items()}
@@ -230,7 +230,7 @@ def test_every_value_with_a_standard_error_names_it_in_ancillary_variables(runs,
 def test_sweep_means_name_their_standard_error_in_the_file(tmp_path):
     import xarray as xr
 
-    from asperity_sim.io import read_netcdf, write_netcdf
+    from asperity_sim.output.netcdf import read_netcdf, write_netcdf
 
     ds = xr.Dataset({"stress_mean": ("step", [1.0, 2.0], {"units": "Pa", "long_name": "mean"}),
                      "stress_sem": ("step", [0.1, 0.2], {"units": "Pa", "long_name": "sem"}),

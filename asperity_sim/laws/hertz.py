@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numba
 
-from ..geometry import fsqrt
+from ..vectormath import fsqrt
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")

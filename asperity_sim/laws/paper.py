@@ -22,8 +22,8 @@ import math
 
 import numba
 
-from ..geometry import fsqrt
-from . import Law, register
+from ..vectormath import fsqrt
+from .registry import Law, register
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")

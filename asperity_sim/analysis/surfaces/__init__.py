@@ -1,0 +1,17 @@
+"""Measured and synthetic surfaces: read topographies, find summits, fit the model, solve the exact contact.
+
+:mod:`~asperity_sim.analysis.surfaces.topography` (surfaces and how they are read or made),
+:mod:`~asperity_sim.analysis.surfaces.summits` (summits and spectral moments),
+:mod:`~asperity_sim.analysis.surfaces.fitting` (InterfaceParams and populations from summits) and
+:mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas).
+"""
+
+from ...errors import SurfaceError
+from .bem import bem_contact, plot_fit
+from .fitting import FitResult, empirical_population, fit, scene_text
+from .summits import IDENTIFIED, NOT_IDENTIFIED, Summits, find_summits, nayak, spectral_moments
+from .topography import INSTALL_HINT, Surface, composite, read, synthetic
+
+__all__ = ["SurfaceError", "Surface", "bem_contact", "Summits", "FitResult", "read", "composite", "synthetic",
+           "find_summits", "fit", "empirical_population", "spectral_moments", "nayak", "scene_text", "plot_fit",
+           "IDENTIFIED", "NOT_IDENTIFIED", "INSTALL_HINT"]

@@ -1,0 +1,242 @@
+"""The commit kernels: committed contacts, contacts born, slots and birth angles.
+
+Owns the kernels that write committed state (called only by
+:meth:`asperity_sim.kernels.state.ContactState.commit`): the commit of every committed contact
+(contacts lost are released and their slots freed), the search for contacts born in the
+increment, their slots (lowest free first, in asperity order) and commit from no history,
+and the birth angles of policy ``birth``.  ``commit_law`` and ``commit_block`` are the law's
+kernels, bound per law by :mod:`asperity_sim.kernels.specialise`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..geometry import local_displacement
+from .contact import asperity_theta, closure_and_slope, committed_overlap, contact_angle, gather_slots, slot_geometry
+from .layout import (
+    BLOCK,
+    C_DISS,
+    C_EVENTS,
+    C_STORED,
+    C_TR,
+    C_WORK,
+    CHUNK,
+    G_DDS,
+    G_DDT,
+    G_DN,
+    G_R,
+    N_COMMIT,
+    N_GEO,
+    N_SLOT_GEO,
+    SLOT_GEO_ROWS,
+    chunk_stride,
+)
+from .reach import may_touch_follow
+
+
+def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
+    """The law's ``commit_block`` for a law without one: ``commit`` of each live committed contact."""
+    for i in range(m):
+        if live[i]:
+            code, work, stored, diss, events = commit_law(dn[i], dds[i], ddt[i], dn_c[b0 + i], 0.0, R[i], consts,
+                                                          arrays, b0 + i, False, scratch)
+            res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
+
+
+def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
+                 theta_birth, n_store, partial, slot_geo):
+    """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
+
+    A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
+    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`, or
+    read from ``slot_geo`` when a trial at ``delta`` on this committed state left it there (not
+    empty; the same bits).
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, dc = closure_and_slope(r_o, d1)
+    has_birth = theta_birth.size > 0
+    known = slot_geo.shape[1] > 0
+    n_chunks = (n_slots + CHUNK - 1) // CHUNK
+    stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
+    for kk in numba.prange(n_chunks):
+        ic = (kk * stride) % n_chunks
+        acc = np.zeros(N_COMMIT)
+        work = stored = diss = events = 0.0
+        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
+        geo = np.empty((N_GEO, BLOCK))
+        live = np.empty(BLOCK, dtype=np.bool_)
+        res = np.empty((5, BLOCK))
+        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
+        for b0 in range(lo, hi, BLOCK):
+            m = min(hi, b0 + BLOCK) - b0
+            if has_birth:
+                for i in range(m):
+                    j = asp[b0 + i]
+                    if j < 0:
+                        continue
+                    cp, sp = cos_phi[j], sin_phi[j]
+                    th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth,
+                                          has_birth)
+                    ct, st = math.cos(th), math.sin(th)
+                    geo[G_DN, i], _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+                    _, geo[G_DDS, i], geo[G_DDT, i] = local_displacement(D0, D1, D2, ct, st, cp, sp)
+                    geo[G_R, i] = R[j]
+            elif known:
+                for a in range(N_SLOT_GEO):
+                    for i in range(m):
+                        geo[SLOT_GEO_ROWS[a], i] = slot_geo[a, b0 + i]
+            else:
+                gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
+                for i in range(m):  # vectorised
+                    slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
+            for i in range(m):
+                live[i] = asp[b0 + i] >= 0
+            commit_block(geo[G_DN], geo[G_DDS], geo[G_DDT], geo[G_R], dn_c, b0, m, live, consts, arrays, scratch, res)
+            for i in range(m):
+                sl = b0 + i
+                j = asp[sl]
+                if j < 0:
+                    continue
+                dn = geo[G_DN, i]
+                new = int(res[0, i])
+                work += res[1, i]
+                stored += res[2, i]
+                diss += res[3, i]
+                events += res[4, i]
+                acc[C_TR + 4 * code[sl] + new] += 1.0
+                if dn <= 0.0:
+                    asp[sl] = -1
+                    flag[j] = 0
+                    dn_c[sl] = 0.0
+                    code[sl] = 0
+                else:
+                    dn_c[sl] = dn
+                    code[sl] = new
+        acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
+        partial[ic, :] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans):
+    """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk.
+
+    ``spans`` (chunks, 2), if not empty: where the trial's :func:`fresh_pass` at this same
+    displacement and committed state found them, per chunk; only those ranges are tested (the
+    same test, so the same asperities), else every asperity below n_active.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure, _ = closure_and_slope(r_o, d1)
+    n_chunks = (n_active + CHUNK - 1) // CHUNK
+    known = spans.shape[0] > 0
+    for ic in numba.prange(n_chunks):
+        c = 0
+        lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
+        if known:
+            lo, hi = spans[ic, 0], spans[ic, 1]
+        for j in range(lo, hi):
+            if flag[j]:
+                continue
+            cp, sp = cos_phi[j], sin_phi[j]
+            x = d1 - r[j]
+            inv_R = 1.0 / R[j]
+            if not may_touch_follow(x, cp * d2 + sp * d3, 1.0 - k_e * closure * inv_R, u[j] * (2.0 / math.pi),
+                                    tan_max):
+                continue
+            th, _ = asperity_theta(u[j], inv_R, closure, k_e, 0.0)
+            dn, _, _ = local_displacement(x, d2, d3, math.cos(th), math.sin(th), cp, sp)
+            if dn > 0.0:
+                flag[j] = 2
+                c += 1
+        counts[ic] = c
+
+
+def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts,
+                 arrays, n_store, partial):
+    """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order)."""
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
+    closure, _ = closure_and_slope(r_o, d1)
+    m = new_slots.size
+    n_chunks = (m + CHUNK - 1) // CHUNK
+    for ic in numba.prange(n_chunks):
+        acc = np.zeros(N_COMMIT)
+        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
+        for ii in range(ic * CHUNK, min(m, (ic + 1) * CHUNK)):
+            sl = new_slots[ii]
+            j = asp[sl]
+            cp, sp = cos_phi[j], sin_phi[j]
+            inv_R = 1.0 / R[j]
+            th, _ = asperity_theta(u[j], inv_R, closure, k_e, 0.0)
+            ct, st = math.cos(th), math.sin(th)
+            dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
+            dnc = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
+            dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
+            _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
+            new, work, stored, diss, events = commit_law(dn, dds, ddt, dnc, dn_ref, R[j], consts, arrays, sl, True,
+                                                         scratch)
+            acc[C_WORK] += work
+            acc[C_STORED] += stored
+            acc[C_DISS] += diss
+            acc[C_EVENTS] += events
+            acc[C_TR + new] += 1.0
+            dn_c[sl] = dn
+            code[sl] = new
+        partial[ic, :] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place.
+
+    A committed contact that stays in contact keeps its angle; one that leaves contact is
+    released (NaN) and, like every asperity without an angle, is born at its current
+    ``follow`` angle if it touches there.  Asperities beyond n_active are out of contact.
+    """
+    d1, d2, d3 = delta[0], delta[1], delta[2]
+    closure = max(r_o + d1, 0.0)
+    for j in numba.prange(theta_birth.size):
+        if j >= n_active:
+            theta_birth[j] = np.nan
+            continue
+        shear = cos_phi[j] * d2 + sin_phi[j] * d3
+        tb = theta_birth[j]
+        if not math.isnan(tb) and math.cos(tb) * (d1 - r[j]) + math.sin(tb) * shear > 0.0:
+            continue
+        th, _ = asperity_theta(u[j], 1.0 / R[j], closure, k_e, 0.0)
+        if math.cos(th) * (d1 - r[j]) + math.sin(th) * shear > 0.0:
+            theta_birth[j] = th
+        else:
+            theta_birth[j] = np.nan
+
+
+@numba.njit(cache=True)
+def assign_slots(flag, counts, asp, n_slots, new_slots):
+    """Give each asperity flagged 2 (a new contact) a slot, lowest free slot first, in asperity order.
+
+    Returns the new number of slots in use (free slots have asp = -1); ``new_slots`` receives
+    the slots given, in order.  Only chunks with a count are scanned.
+    """
+    free = 0
+    m = 0
+    for ic in range(counts.size):
+        if counts[ic] == 0:
+            continue
+        for j in range(ic * CHUNK, min(flag.size, (ic + 1) * CHUNK)):
+            if flag[j] != 2:
+                continue
+            while free < n_slots and asp[free] >= 0:
+                free += 1
+            sl = free
+            if sl == n_slots:
+                n_slots += 1
+            asp[sl] = j
+            flag[j] = 1
+            new_slots[m] = sl
+            m += 1
+            free += 1
+    return n_slots

@@ -1,0 +1,311 @@
+"""The interface response at one displacement: stress, standard error, tangent and counts (SPEC §6).
+
+Owns the Python side of the reductions: :class:`Evaluation` (the result), :class:`Workspace`
+(preallocated partial rows and the trial's leftovers, so a Newton iteration allocates nothing)
+and :func:`evaluate`, the Monte Carlo sum of Eq. (23), sigma_i = N w sum_j f_ij, with its
+exact tangent T_ik = d sigma_i / d Delta_k, for any registered law.  It picks the kernels
+(:mod:`asperity_sim.kernels.specialise`) and passes them the population's arrays and the
+committed state (:mod:`asperity_sim.kernels.state`), which it only reads.
+
+Which asperities are visited.  The population is sorted by height: only the first
+``n_active`` can touch (:func:`~asperity_sim.kernels.reach.bounds`).  A path-independent law
+sums them in one parallel pass, or on the calling thread when they fit
+``SERIAL_CHUNKS`` chunks.  A history law makes two passes: the committed contacts, from their
+slots, and the contacts that are new in this trial; the second tests only the asperities that
+the workspace lists as able to touch in a box of displacements around the path (the same
+asperities in the same order as a full scan, so the same bits).  No fastmath anywhere: vector
+and scalar code give the same bits, and a result is the same whether its kernels were compiled
+or loaded from cache.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import laws
+from ..sampling.population import Population
+from .layout import (
+    BLOCK,
+    CHUNK,
+    EMPTY,
+    EMPTY_COUNTS,
+    EMPTY_INDEX,
+    EMPTY_SLOT_GEO,
+    EMPTY_SPANS,
+    N_ACC,
+    N_OUT,
+    N_SLOT_GEO,
+    O_COV,
+    O_NA,
+    O_NC,
+    O_NP,
+    O_NS,
+    O_SE,
+    O_STRESS,
+    O_TANGENT,
+    O_TH,
+    SERIAL_CHUNKS,
+    finish,
+)
+from .reach import bounds
+from .specialise import kernels
+
+POLICIES = ("follow", "birth")
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Interface response at one displacement (SPEC §6).
+
+    stress (3,) [Pa], stderr (3,) [Pa] (Monte Carlo standard error of each component),
+    covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3)
+    [Pa/m] (d sigma_i / d Delta_k), n_contact, n_slip and n_partial (asperity counts),
+    mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
+    below the height bound, the most that can touch).
+    """
+
+    delta: np.ndarray
+    stress: np.ndarray
+    stderr: np.ndarray
+    covariance: np.ndarray
+    tangent: np.ndarray
+    n_contact: int
+    n_slip: int
+    n_partial: int
+    mean_theta: float
+    n_active: int
+
+
+def check_delta(delta) -> np.ndarray:
+    d = np.asarray(delta, dtype=float)
+    if d.shape != (3,):
+        raise ValueError(f"delta = {delta!r} must have shape (3,) [m], got shape {d.shape}")
+    if not all(map(math.isfinite, d.tolist())):
+        raise ValueError(f"delta = {d!r} [m] is not finite (valid range: finite reals)")
+    return d
+
+
+def check_choice(name, value, valid):
+    if value not in valid:
+        raise ValueError(f"{name} = {value!r} is not known (valid: {', '.join(valid)})")
+
+
+class Workspace:
+    """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
+
+    A history law's trial also leaves here, for a commit at its displacement, where its fresh
+    contacts are (``spans``), the geometry of its committed contacts (``slot_geo``, policy
+    follow) and the displacement and committed state it was made at (``fresh_key``).  The
+    workspace also keeps an index of the asperities that may touch in a box of displacements
+    around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
+    only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
+    """
+
+    AHEAD = 8  # the index box reaches this many times the step from the committed displacement
+
+    def __init__(self, n, index=True):
+        n_chunks = (n + CHUNK - 1) // CHUNK
+        self.partial = np.zeros((n_chunks, N_ACC))
+        self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
+        self.fresh_key = None
+        self.slot_geo = np.zeros((N_SLOT_GEO, 0))
+        self.index = bool(index)
+        self.listed = self.n_listed = None  # allocated by the first history-law trial
+        self.box = np.zeros((2, 3))
+        self.box_pop = None  # the population the listed asperities belong to; None: no valid list
+        self.n_box, self.tan_box = 0, 0.0
+        self.trials_by_index = [0, 0, 0]  # trials that tested every asperity, built the list, used it
+
+    @staticmethod
+    def trial_key(delta, state):
+        """What identifies a trial: the bits of its displacement and the committed state it was made on."""
+        return np.asarray(delta, dtype=float).tobytes(), id(state), state.serial
+
+    def made_at(self, delta, state):
+        """True if the last trial was made at ``delta`` on the committed state ``state``."""
+        return self.fresh_key == self.trial_key(delta, state)
+
+    def fresh_spans(self, delta, state):
+        """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
+        return self.spans if self.made_at(delta, state) else EMPTY_SPANS
+
+    def slot_geometry(self, delta, state):
+        """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
+        return self.slot_geo if self.made_at(delta, state) and state.theta_birth is None else EMPTY_SLOT_GEO
+
+    def slot_rows(self, n_slots):
+        """The slot geometry array, grown (by a quarter beyond the need) to hold ``n_slots`` slots."""
+        if self.slot_geo.shape[1] < n_slots:
+            self.slot_geo = np.zeros((N_SLOT_GEO, n_slots + n_slots // 4 + BLOCK))
+        return self.slot_geo
+
+    def fresh_index(self, pop, d, delta_c, n_active):
+        """How a history-law trial at ``d`` finds its fresh contacts: ``index`` of :func:`fresh_pass` (0, 1, 2).
+
+        2 when the listed asperities were built for ``pop`` in a box that holds ``d``.  Else 1:
+        a new box, from the committed displacement ``delta_c`` to AHEAD steps d - delta_c
+        beyond it, widened by the largest component of the step in every direction (Newton
+        corrections, a turning path), with its own bounds (:func:`bounds` at the box corner of
+        largest closure and shear).  0 without an index, or for a trial at ``delta_c``.
+        """
+        if not self.index:
+            return 0
+        if self.listed is None or self.listed.size < pop.n:
+            self.listed = np.empty(self.spans.shape[0] * CHUNK, dtype=np.int32)
+            self.n_listed = np.zeros(self.spans.shape[0], dtype=np.int64)
+            self.box_pop = None
+        if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
+                and np.all(d <= self.box[1])):
+            return 2
+        step = d - delta_c
+        pad = np.abs(step).max()
+        if not pad > 0.0:
+            return 0
+        ahead = delta_c + self.AHEAD * step
+        self.box[0] = np.minimum(delta_c, ahead) - pad
+        self.box[1] = np.maximum(delta_c, ahead) + pad
+        corner = np.array([self.box[1, 0], np.abs(self.box[:, 1]).max(), np.abs(self.box[:, 2]).max()])
+        r_o, k_e, _, _, _, beta, _ = pop.kernel_constants
+        self.n_box, self.tan_box = bounds(pop.r, pop.R_min, r_o, k_e, beta, corner, EMPTY)
+        self.box_pop = None  # until the list is written
+        return 1
+
+    def rows(self, m):
+        """At least m rows of partial sums (grown when a history law has more slot chunks)."""
+        if self.partial.shape[0] < m:
+            self.partial = np.zeros((m, N_ACC))
+        return self.partial
+
+
+def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None, state=None) -> Evaluation:
+    """Evaluate Eq. (23) and its tangent over a population at interface displacement delta [m].
+
+    ``law`` a registered law name (:mod:`asperity_sim.laws`).  ``state`` (a
+    :class:`~asperity_sim.kernels.state.ContactState`) holds the committed per-contact state: the
+    springs of a history law and the birth angles of policy birth; it is read, never written.
+    Without it: a virgin interface at Delta = 0 (every contact born now).  Under policy
+    birth ``theta_birth`` (n,) may give the frozen angles directly (NaN where none).
+    """
+    if not isinstance(pop, Population):
+        raise ValueError(f"pop = {pop!r} is not a Population")
+    d = check_delta(delta)
+    lw = laws.get(law)
+    check_choice("policy", policy, POLICIES)
+    if workspace is not None and (not isinstance(workspace, Workspace)
+                                  or workspace.partial.shape[0] * CHUNK < pop.n):
+        raise ValueError(f"workspace = {workspace!r} is not a Workspace for {pop.n} asperities (use Workspace(pop.n))")
+    if state is None:
+        from .state import ContactState
+
+        state = ContactState(pop, lw, policy)
+    elif state.law is not lw or state.pop is not pop:
+        raise ValueError(f"state belongs to law {state.law.name!r} on another population; this is law {lw.name!r}")
+    if policy == "birth" and theta_birth is not None:
+        tb = np.asarray(theta_birth, dtype=float)
+        if tb.shape != (pop.n,):
+            raise ValueError(f"theta_birth has shape {tb.shape}, expected ({pop.n},)")
+        state.theta_birth = tb
+    ws = workspace if workspace is not None else Workspace(pop.n)
+    return evaluate_unchecked(pop, d, state, ws)
+
+
+def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
+    """:func:`evaluate` on arguments already checked (for a solver that calls it many times).
+
+    ``d`` a finite float array (3,), ``state`` a :class:`~asperity_sim.kernels.state.ContactState`
+    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.
+    """
+    law = state.law
+    tb = EMPTY if state.theta_birth is None else state.theta_birth
+    out = np.empty(N_OUT)
+    r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
+    kern = kernels(law)
+    if law.path_independent:
+        # a population that fits the serial kernel: it finds its own bounds
+        serial = pop.n <= SERIAL_CHUNKS * CHUNK
+        if not serial:
+            n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+            serial = n_active <= SERIAL_CHUNKS * CHUNK
+        if serial:
+            kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
+                                  state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
+            return evaluation_from(d, out)
+        kern["reduce_parallel"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, state.consts,
+                                tb, tan_max, workspace.partial)
+        n_rows = (n_active + CHUNK - 1) // CHUNK
+    else:
+        n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
+        n_pop = (n_active + CHUNK - 1) // CHUNK
+        n_slot = (state.n_slots + CHUNK - 1) // CHUNK
+        partial = workspace.rows(n_pop + n_slot)
+        workspace.fresh_key = None
+        index = workspace.fresh_index(pop, d, state.delta_c, n_active)
+        listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
+        kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
+                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans,
+                           index, listed, n_listed, workspace.box, workspace.n_box, workspace.tan_box)
+        workspace.trials_by_index[index] += 1
+        if index == 1:
+            workspace.box_pop = pop
+        if n_slot:
+            kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
+                              state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
+                              workspace.slot_rows(state.n_slots))
+        workspace.fresh_key = workspace.trial_key(d, state)
+        n_rows = n_pop + n_slot
+    finish(workspace.partial, n_rows, pop.n, scale, out)
+    out[O_NA] = n_active
+    return evaluation_from(d, out)
+
+
+def _row(d):
+    """d (3,) as a C-contiguous (1, 3) view or copy: the one array layout the serial kernel is compiled for."""
+    return np.ascontiguousarray(d).reshape(1, 3)
+
+
+def evaluate_steps(pop, deltas, workspace, law="paper") -> np.ndarray:
+    """Flat results (m, N_OUT) of a path-independent law under policy follow at each row of ``deltas`` (m, 3) [m].
+
+    One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
+    meant for small populations, where the per-call overhead of :func:`evaluate` exceeds the
+    kernel time.  Read a row with :func:`evaluation_from`.  ``deltas`` finite and
+    C-contiguous, ``workspace`` a :class:`Workspace` for ``pop``.
+    """
+    lw = laws.get(law)
+    r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
+    out = np.empty((deltas.shape[0], N_OUT))
+    kernels(lw)["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e,
+                                 lw.constants(pop.params, None), beta, EMPTY, pop.n, scale, workspace.partial, out)
+    return out
+
+
+def evaluation_from(d, out) -> Evaluation:
+    """The :class:`Evaluation` at ``d`` from one flat result row ``out`` (N_OUT,) of :func:`finish`."""
+    return Evaluation(
+        delta=d,
+        stress=out[O_STRESS:O_STRESS + 3],
+        stderr=out[O_SE:O_SE + 3],
+        covariance=out[O_COV:O_COV + 9].reshape(3, 3),
+        tangent=out[O_TANGENT:O_TANGENT + 9].reshape(3, 3),
+        n_contact=int(out[O_NC]),
+        n_slip=int(out[O_NS]),
+        n_partial=int(out[O_NP]),
+        mean_theta=float(out[O_TH]),
+        n_active=int(out[O_NA]),
+    )
+
+
+def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
+    """Per-asperity arrays at delta of a path-independent law: delta_n [m], theta [rad], force (n, 3) [N], state."""
+    d = check_delta(delta)
+    lw = laws.get(law)
+    tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else EMPTY
+    out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
+           "state": np.empty(pop.n, dtype=np.int8)}
+    kernels(lw)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
+                                  lw.constants(pop.params, None), tb, out["delta_n"], out["theta"], out["force"],
+                                  out["state"])
+    return out

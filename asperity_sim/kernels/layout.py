@@ -1,0 +1,112 @@
+"""Layouts of the reduction kernels' arrays, and the ordered sum of their partial rows (SPEC §6).
+
+Owns the facts every kernel shares: the chunk and block sizes, the layout of one row of
+partial sums (``I_*``), of the flat result of an evaluation (``O_*``), of the per-asperity
+values of a block (``V_*``), of a block's inputs (``X_*``) and slot geometry (``G_*``), of a
+commit's sums (``C_*``), the empty arrays passed for "none", :func:`finish` (stress, tangent,
+covariance and standard errors from the partial rows, summed in order so that a result does
+not depend on the number of threads) and :func:`chunk_stride` (the order chunks go to threads).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+CHUNK = 2048
+SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
+# layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
+# tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
+I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
+N_ACC = 22
+_FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (i, j) of the products f_i f_j, in their order
+
+
+@numba.njit(cache=True, inline="always")
+def chunk_stride(n_chunks):
+    """A stride g coprime with n_chunks, near n_chunks / golden ratio.
+
+    Chunk ic = (k g) mod n_chunks for k = 0 .. n_chunks-1 visits every chunk once and spreads
+    the chunks of each thread's contiguous block of k over the whole height range.  The
+    population is sorted by height, so contiguous blocks would give one thread all the
+    contacts (low heights) and the other the cheap skipped asperities.  Each chunk still
+    writes its own row, so the result does not depend on the threads.
+    """
+    g = max(1, int(0.6180339887498949 * n_chunks))
+    while True:
+        a, b = g, n_chunks
+        while b:
+            a, b = b, a % b
+        if a == 1:
+            return g
+        g -= 1
+
+
+@numba.njit(cache=True)
+def finish(partial, n_chunks, n, scale, out):
+    """Stress, tangent, covariance, standard error and counts from the partial sums (SPEC §6).
+
+    sigma = N w sum f; the covariance of the mean of n iid draws scaled to stress,
+    (N w n)² C_f / n = (N w)² n C_f, multiplied in this order so that 0 stays 0 when (N w)²
+    overflows; the standard error is its square root on the diagonal (NaN stays NaN).
+    """
+    s = np.zeros(N_ACC)
+    for ic in range(n_chunks):  # row after row, in order, as numpy's sum over axis 0
+        for a in range(N_ACC):
+            s[a] += partial[ic, a]
+    for i in range(3):
+        out[O_STRESS + i] = scale * s[I_F + i]
+    for i in range(9):
+        out[O_TANGENT + i] = scale * s[I_T + i]
+    for m in range(6):
+        i, j = _FF_PAIRS[m]
+        c = (s[I_FF + m] - s[I_F + i] * s[I_F + j] / n) / (n - 1) * scale * scale * n if n > 1 else 0.0
+        out[O_COV + 3 * i + j] = c
+        out[O_COV + 3 * j + i] = c
+    for i in range(3):
+        c = out[O_COV + 4 * i]
+        out[O_SE + i] = math.sqrt(c) if c > 0.0 or c != c else 0.0
+    n_contact = round(s[I_NC])
+    out[O_NC] = n_contact
+    out[O_NS] = round(s[I_NS])
+    out[O_NP] = round(s[I_NP])
+    out[O_TH] = s[I_TH] / n_contact if n_contact else 0.0
+
+
+
+# layout of the flat result of :func:`finish` (one float array per evaluation)
+O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
+N_OUT = 29
+
+
+# per-asperity values of the vectorised follow loop, one row of BLOCK each: global force (3), tangent
+# (9, row-major), contact, full slip, partial slip (0 or 1) and theta of a contact
+V_G, V_T, V_NC, V_NS, V_NP, V_TH = 0, 3, 12, 13, 14, 15
+N_VAL = 16
+BLOCK = 256  # asperities per block (16 x 256 doubles of values = 32 KiB)
+# inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
+X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
+N_IN = 5
+
+
+# per-slot geometry of a block of committed contacts, one row of BLOCK each: inputs (Delta_1 - r, cos phi,
+# sin phi, R, u), then delta_n, delta_s, the local increment (normal, s, t), cos/sin theta, theta, d theta/d Delta_1
+G_X, G_CP, G_SP, G_R, G_U, G_DN, G_DS, G_RHO, G_DDS, G_DDT, G_CT, G_ST, G_TH, G_TH1 = range(14)
+N_GEO = 14
+# what a commit needs of that geometry, left by the trial per slot: delta_n, the increment (s, t), R
+SLOT_GEO_ROWS = (G_DN, G_DDS, G_DDT, G_R)
+N_SLOT_GEO = len(SLOT_GEO_ROWS)
+
+
+# layout of one row of commit sums: work, stored energy, dissipation, law events, transitions (4 x 4)
+C_WORK, C_STORED, C_DISS, C_EVENTS, C_TR = 0, 1, 2, 3, 4
+N_COMMIT = 4 + 16
+
+
+EMPTY = np.empty(0)
+EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
+EMPTY_INDEX = np.zeros(0, dtype=np.int32)
+EMPTY_SLOT_GEO = np.zeros((N_SLOT_GEO, 0))
+EMPTY_COUNTS = np.zeros(0, dtype=np.int64)

@@ -1,0 +1,273 @@
+"""Committed per-contact state of a run, and its one ``commit``.
+
+Owns what a contact remembers between increments:
+
+- policy ``birth``: the frozen angle of every committed contact (SPEC §3), per asperity;
+- a history law (:mod:`asperity_sim.laws`): the contacts in committed contact, in *slots*
+  (struct-of-arrays over slots: the asperity index ``asp`` (-1 for a free slot), the committed
+  overlap ``dn_c`` and state code ``code``, and the law's own arrays, e.g. springs), a one-byte
+  flag per asperity (1: holds a slot) and the committed interface displacement ``delta_c``.
+  Asperities that never touch get nothing; a contact that is lost frees its slot and its
+  memory is erased (SPEC: contact loss erases history).
+
+A path-independent law under policy follow keeps nothing.  Trial evaluations
+(:func:`asperity_sim.kernels.evaluate.evaluate`) only read this state; :meth:`ContactState.commit` is
+the one place that writes it, and the driver calls it only after an increment converged.
+
+Commit of a history law (each step a numba kernel over the slots or the population, no
+Python work per asperity): the committed contacts are committed by the law at the new
+displacement (energies, state transitions, lost contacts freed), the asperities that touch
+for the first time are flagged, given slots (free slots first, in asperity order) and
+committed from no history; then, under policy birth, the birth angles.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import laws
+from .commit import assign_slots, birth_angles, find_fresh
+from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
+from .reach import bounds
+from .specialise import kernels
+
+SPRING_DTYPES = ("float64", "float32")
+K_MAX = 4096
+
+
+@dataclass
+class CommitResult:
+    """Energies [J per unit nominal area: J m-2] and bookkeeping of one commit (history laws)."""
+
+    work: float          # external work of the increment
+    stored: float        # stored elastic energy after the increment
+    dissipation: float   # frictional dissipation of the increment
+    events: int          # law events in this increment (mdr: contacts coarsened)
+    transitions: np.ndarray  # (4, 4) asperity counts from state (row) to state (column)
+
+
+def check_k(k) -> int:
+    if isinstance(k, bool) or not isinstance(k, numbers.Integral) or not 1 <= k <= K_MAX:
+        raise ValueError(f"k = {k!r} is not a valid spring count (valid range: integer in [1, {K_MAX}])")
+    return int(k)
+
+
+class ContactState:
+    """The committed per-contact state of a population under one law and policy (module docstring)."""
+
+    def __init__(self, pop, law="paper", policy="follow", k=16, spring_dtype="float64", capacity=1024):
+        self.law = laws.get(law)
+        if policy not in ("follow", "birth"):
+            raise ValueError(f"policy = {policy!r} is not known (valid: follow, birth)")
+        self.k = check_k(k)
+        if spring_dtype not in self.law.spring_dtypes:
+            raise ValueError(f"spring_dtype = {spring_dtype!r} is not valid for law {self.law.name!r} "
+                             f"(valid: {', '.join(self.law.spring_dtypes)})")
+        self.pop, self.policy, self.spring_dtype = pop, policy, spring_dtype
+        self.consts = tuple(float(c) for c in self.law.constants(pop.params, self.k))
+        self.theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
+        self.delta_c = np.zeros(3)
+        self.serial = 0  # commits and restores so far: a trial's leftovers are valid for this state only
+        self.reference = np.zeros(3)  # where fresh contacts are expected to go: their springs fit it
+        self.n_slots = 0
+        if self.law.history is not None:
+            cap = max(int(capacity), 1)
+            self.flag = np.zeros(pop.n, dtype=np.uint8)
+            self.asp = np.full(cap, -1, dtype=np.int32)
+            self.dn_c = np.zeros(cap)
+            self.code = np.zeros(cap, dtype=np.int8)
+            self.arrays = self.law.history.arrays(cap, self.k, np.dtype(spring_dtype))
+            self._counts = np.zeros(0, dtype=np.int64)
+            self._partial = np.zeros((0, N_COMMIT))
+
+    @property
+    def has_history(self) -> bool:
+        return self.law.history is not None
+
+    @property
+    def n_stored(self) -> int:
+        """Springs per slot (the last axis of the law's first array)."""
+        return self.arrays[0].shape[-1] if self.has_history else 0
+
+    @property
+    def n_contacts(self) -> int:
+        """Committed contacts holding a slot."""
+        return int(np.count_nonzero(self.asp[:self.n_slots] >= 0)) if self.has_history else 0
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: birth angles, flags, and the slot arrays (all capacity)."""
+        total = 0 if self.theta_birth is None else self.theta_birth.nbytes
+        if self.has_history:
+            total += self.flag.nbytes + self.asp.nbytes + self.dn_c.nbytes + self.code.nbytes
+            total += sum(a.nbytes for a in self.arrays)
+        return total
+
+    # -- commit -----------------------------------------------------------------------------------
+
+    def commit(self, delta, n_active=None, workspace=None) -> CommitResult | None:
+        """Make the state at the converged displacement ``delta`` [m] the committed one.
+
+        Returns the energies of the increment for a history law, else None.  ``n_active``
+        (asperities below the height bound, from the trial) is recomputed when not given.
+        ``workspace``: the :class:`~asperity_sim.kernels.evaluate.Workspace` of the trials; if the last
+        one was made at ``delta``, the search for contacts born in this increment looks only
+        where it found them, and the geometry of the committed contacts is the one it left.
+        """
+        pop, p = self.pop, self.pop.params
+        delta = np.asarray(delta, dtype=float)
+        tb = EMPTY if self.theta_birth is None else self.theta_birth
+        result = None
+        if self.has_history:
+            n_active_h, tan_max = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, EMPTY)
+            spans = EMPTY_SPANS if workspace is None else workspace.fresh_spans(delta, self)
+            geo = EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
+            result = self._commit_history(delta, n_active_h, tan_max, tb, spans, geo)
+            self.serial += 1
+        if self.theta_birth is not None:
+            if n_active is None:
+                n_active = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, tb)[0]
+            birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, delta, p.r_o, p.k_e,
+                         self.theta_birth)
+        self.delta_c = delta.copy()
+        return result
+
+    def _commit_history(self, delta, n_active, tan_max, tb, spans, geo) -> CommitResult:
+        pop, p = self.pop, self.pop.params
+        kern = kernels(self.law)
+        n_slot_chunks = (self.n_slots + CHUNK - 1) // CHUNK
+        n_pop_chunks = (n_active + CHUNK - 1) // CHUNK
+        if self._partial.shape[0] < n_slot_chunks + 1:
+            self._partial = np.zeros((2 * n_slot_chunks + 16, N_COMMIT))
+        if self._counts.size < n_pop_chunks:
+            self._counts = np.zeros(n_pop_chunks, dtype=np.int64)
+        sums = np.zeros(N_COMMIT)
+        if self.n_slots:
+            kern["commit_slots"](self.asp, self.n_slots, self.dn_c, self.code, self.flag, pop.r, pop.R, pop.u,
+                                 pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays,
+                                 tb, self.n_stored, self._partial, geo)
+            sums += self._partial[:n_slot_chunks].sum(axis=0)
+        counts = self._counts[:n_pop_chunks]
+        find_fresh(self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e,
+                           tan_max, counts, spans)
+        n_new = int(counts.sum())
+        if n_new:
+            self._reserve(self.n_slots + n_new)
+            new_slots = np.empty(n_new, dtype=np.int64)
+            self.n_slots = int(assign_slots(self.flag, counts, self.asp, self.n_slots, new_slots))
+            n_new_chunks = (n_new + CHUNK - 1) // CHUNK
+            if self._partial.shape[0] < n_new_chunks:
+                self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
+            kern["commit_fresh"](new_slots, self.asp, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
+                                 pop.sin_phi, delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts,
+                                 self.arrays, self.n_stored, self._partial)
+            sums += self._partial[:n_new_chunks].sum(axis=0)
+        scale = p.N * pop.weight
+        transitions = np.rint(sums[C_TR:C_TR + 16]).astype(np.int64).reshape(4, 4)
+        transitions[0, 0] = pop.n - transitions.sum()  # out of contact before and after
+        return CommitResult(work=scale * sums[C_WORK], stored=scale * sums[C_STORED], dissipation=scale * sums[C_DISS],
+                            events=int(round(sums[C_EVENTS])), transitions=transitions)
+
+    def _reserve(self, needed):
+        cap = self.asp.size
+        if needed <= cap:
+            return
+        new = max(needed, int(cap * 1.25) + 1)
+        for a in (self.asp, self.dn_c, self.code, *self.arrays):
+            _grow_in_place(a, new)
+        self.asp[cap:] = -1
+
+    # -- snapshots and checkpoints ----------------------------------------------------------------
+
+    def snapshot(self, delta):
+        """Per-asperity arrays at the committed displacement ``delta`` (call right after commit)."""
+        pop, p = self.pop, self.pop.params
+        out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
+               "state": np.empty(pop.n, dtype=np.int8)}
+        tb = EMPTY if self.theta_birth is None else self.theta_birth
+        d = np.asarray(delta, dtype=float)
+        if not self.has_history:
+            kernels(self.law)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e,
+                                                self.consts, tb, out["delta_n"], out["theta"], out["force"],
+                                                out["state"])
+            return out
+        slot_of = np.full(pop.n, -1, dtype=np.int64)
+        live = np.flatnonzero(self.asp[:self.n_slots] >= 0)
+        slot_of[self.asp[live]] = live
+        kernels(self.law)["snapshot_slots"](slot_of, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
+                                            pop.sin_phi, d, p.r_o, p.k_e, self.consts, self.arrays, tb,
+                                            out["delta_n"], out["theta"], out["force"], out["state"])
+        return out
+
+    def state_arrays(self) -> dict:
+        """The committed state as plain arrays (checkpoints); spare capacity is not exported."""
+        out = {"delta_c": self.delta_c.copy()}
+        if self.theta_birth is not None:
+            out["theta_birth"] = self.theta_birth.copy()
+        if self.has_history:
+            m = self.n_slots
+            out.update({"flag": self.flag.copy(), "asp": self.asp[:m].copy(), "dn_c": self.dn_c[:m].copy(),
+                        "code": self.code[:m].copy()})
+            out.update({f"law{i}": a[:m].copy() for i, a in enumerate(self.arrays)})
+        return out
+
+    def restore(self, arrays):
+        """Set the state from :meth:`state_arrays` of the same configuration (checked: ValueError if malformed)."""
+        pop = self.pop
+        delta_c = _checked(arrays, "delta_c", (3,), np.float64)
+        if self.theta_birth is not None:
+            self.theta_birth = _checked(arrays, "theta_birth", (pop.n,), np.float64, finite=False).copy()
+        if self.has_history:
+            asp = arrays["asp"]
+            m = asp.shape[0] if asp.ndim == 1 else -1
+            flag = _checked(arrays, "flag", (pop.n,), np.uint8)
+            asp = _checked(arrays, "asp", (m,), np.int32)
+            if m and (asp.max() >= pop.n or asp.min() < -1):
+                raise ValueError(f"slot map holds asperity indices outside [-1, {pop.n - 1}]")
+            live = asp[asp >= 0]
+            if np.unique(live).size != live.size or np.count_nonzero(flag) != live.size or not np.all(flag[live] == 1):
+                raise ValueError("slot map and contact flags disagree")
+            dn_c = _checked(arrays, "dn_c", (m,), np.float64)
+            code = _checked(arrays, "code", (m,), np.int8)
+            if np.any((code < 0) | (code > 3)):
+                raise ValueError("contact state codes outside [0, 3]")
+            if np.any(dn_c[asp >= 0] <= 0.0):
+                raise ValueError("a committed contact has a committed overlap <= 0")
+            law_arrays = []
+            for i, a in enumerate(self.arrays):
+                law_arrays.append(_checked(arrays, f"law{i}", (m,) + a.shape[1:], a.dtype, finite=False))
+            if self.law.history.validate is not None:
+                self.law.history.validate(tuple(law_arrays), np.flatnonzero(asp >= 0))
+            self._reserve(max(m, 1))
+            self.flag[:] = flag
+            self.asp[:m], self.dn_c[:m], self.code[:m] = asp, dn_c, code
+            for a, b in zip(self.arrays, law_arrays):
+                a[:m] = b
+            self.n_slots = m
+        self.delta_c = delta_c.copy()
+        self.serial += 1
+
+
+def _grow_in_place(a, new):
+    """Grow ``a`` along its first axis to ``new`` rows, in place (new rows zero).
+
+    ``ndarray.resize`` reallocates the buffer (``realloc``, which moves large blocks by remapping
+    pages): the peak memory of a growing spring store stays near its new size, where a copy into a
+    new array would hold both.  The state's arrays are never shared with a view.
+    """
+    a.resize((new,) + a.shape[1:], refcheck=False)
+
+
+def _checked(arrays, name, shape, dtype, finite=True):
+    try:
+        a = arrays[name]
+    except KeyError:
+        raise ValueError(f"state array {name} is missing") from None
+    if a.shape != shape or a.dtype != np.dtype(dtype):
+        raise ValueError(f"state array {name} has shape {a.shape} and dtype {a.dtype}, expected {shape} {np.dtype(dtype)}")
+    if finite and a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+        raise ValueError(f"state array {name} holds non-finite values")
+    return a

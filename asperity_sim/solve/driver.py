@@ -1,0 +1,201 @@
+"""simulate(): a load path stepped through increments under mixed control (SPEC §6–§7).
+
+Owns the loop: for each stage, increments with cut-backs; for each increment, a Newton
+solve (:mod:`asperity_sim.solve.solver`), then commit (:class:`~asperity_sim.kernels.state.ContactState`)
+and record.  How the next increment is sized and predicted, and the named failure of one
+that cannot be completed, live in :mod:`asperity_sim.solve.stepping`; the errors in
+:mod:`asperity_sim.errors`; what a checkpoint holds of a run, and how a run is saved to it
+and restored from it, in :mod:`asperity_sim.solve.run_checkpoint` (the file format in
+:mod:`asperity_sim.output.checkpoint`).
+Displacement-controlled increments of a small population under a path-independent law (one
+evaluation each, nothing to commit) go through one kernel call per batch instead
+(:meth:`Run.prescribed_batch`), with the same bits.  The loop runs inside ``try/finally``
+so what converged is always kept: on failure the exception carries the partial dataset
+(and it is written if an output file was asked for).
+
+Every input is checked before any work.  A run stops only with a named
+:class:`SimulationError` that says why (a stress the interface cannot carry, an increment
+that does not converge after every cut-back, the wall-time limit), never with NaN.  The
+whole state of a run (:class:`Run`) can be checkpointed at chosen steps and resumed
+bit-identically (:func:`asperity_sim.solve.run_checkpoint.save` and
+:func:`~asperity_sim.solve.run_checkpoint.restore`, :func:`resume`).
+"""
+
+from __future__ import annotations
+
+import numbers
+import os
+
+from .. import laws
+from ..kernels.evaluate import POLICIES, check_choice
+from ..kernels.state import SPRING_DTYPES
+from ..params import InterfaceParams, check_real
+from ..paths import LoadPath
+from ..sampling.population import N_MAX, SAMPLERS, Population
+from . import run_checkpoint
+from .run import Run
+from .solver import SolverSettings
+
+SEED_MAX = 2**63 - 1  # a seed is stored as a 64-bit integer attribute
+
+
+def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
+             sampler: str = "random", law: str = "paper", policy: str = "follow", *, k: int = 16,
+             spring_dtype: str = "float64", snapshots=None, output=None, settings: SolverSettings | None = None,
+             population: Population | None = None, progress=None, max_wall_time: float | None = None,
+             checkpoint=None, checkpoint_every: int | None = None, resume=None):
+    """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
+
+    Parameters
+    ----------
+    params : InterfaceParams
+    path : LoadPath
+    n : int, number of sampled asperities, in [1, 2**31 - 1]
+    seed : int >= 0 or None; sampler : "random" or "sobol"
+    law : a registered law (:mod:`asperity_sim.laws`): "paper" (path independent, SPEC §5) or
+        "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
+    policy : "follow" or "birth" (SPEC §3)
+    k : int in [1, 4096], springs a contact has at least at its largest extent (history laws)
+    spring_dtype : "float64" or "float32", storage of the springs (history laws)
+    snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
+    output : path of a netCDF file to write (atomically), also when the run fails
+    settings : SolverSettings
+    population : a Population to reuse instead of sampling (params, n, seed, sampler then come from it)
+    progress : callable(stage, n_stages, fraction, step, iterations) called after each increment
+    max_wall_time : float > 0 [s] or None; past it the run stops with :class:`WallTimeExceededError`
+        (checked before every increment and cut-back)
+    checkpoint : path of a checkpoint file (:mod:`asperity_sim.output.checkpoint`) written atomically every
+        ``checkpoint_every`` converged increments (None: at the end of every stage), and when the
+        run is interrupted by an exception that is not a :class:`SimulationError`
+    checkpoint_every : int >= 1 or None
+    resume : path of a checkpoint of this same run (same parameters, path, n, seed, sampler, law,
+        policy, k, settings, snapshots and package version; anything else raises
+        :class:`~asperity_sim.errors.CheckpointError`, a ``ValueError``): the run continues
+        from it and its results are bit-identical to an uninterrupted run.  :func:`resume`
+        does the same from the file alone.
+
+    Returns
+    -------
+    xarray.Dataset with dimension ``step`` (see :mod:`asperity_sim.output.variables`).
+
+    Raises
+    ------
+    ValueError for invalid input (before any work); :class:`StressNotReachableError`,
+    :class:`ConvergenceError`, :class:`WallTimeExceededError` (all :class:`SimulationError`,
+    with ``.dataset``) when the run stops early.
+    """
+    if not isinstance(params, InterfaceParams):
+        raise ValueError(f"params = {params!r} is not an InterfaceParams")
+    if not isinstance(path, LoadPath):
+        raise ValueError(f"path = {path!r} is not a LoadPath (see asperity_sim.paths)")
+    law = laws.get(law).name
+    check_choice("policy", policy, POLICIES)
+    check_choice("spring_dtype", spring_dtype, SPRING_DTYPES)
+    check_choice("sampler", sampler, SAMPLERS)
+    n = _check_int("n", n, 1, N_MAX)
+    if seed is not None:
+        seed = _check_int("seed", seed, 0, SEED_MAX)
+    k = _check_int("k (springs per contact)", k, 1, 4096)
+    settings = SolverSettings() if settings is None else settings
+    if not isinstance(settings, SolverSettings):
+        raise ValueError(f"settings = {settings!r} is not a SolverSettings")
+    if population is not None and not isinstance(population, Population):
+        raise ValueError(f"population = {population!r} is not a Population")
+    if population is not None and population.params != params:
+        raise ValueError("population was sampled from other parameters than params")
+    output = _check_writable("output", _check_file("output", output))
+    snaps = _check_snapshots(snapshots)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress = {progress!r} must be callable or None")
+    if max_wall_time is not None:
+        max_wall_time = check_real("max_wall_time [s]", max_wall_time, 0.0, None, lo_open=True)
+    checkpoint = _check_writable("checkpoint", _check_file("checkpoint", checkpoint))
+    if output is not None and checkpoint is not None and os.path.abspath(output) == os.path.abspath(checkpoint):
+        raise ValueError(f"output and checkpoint are the same file {os.fspath(output)!r}: give two different paths")
+    if checkpoint_every is not None:
+        checkpoint_every = _check_int("checkpoint_every (steps)", checkpoint_every, 1, None)
+        if checkpoint is None:
+            raise ValueError(f"checkpoint_every = {checkpoint_every} needs a checkpoint file (checkpoint = None)")
+    resume = _check_file("resume", resume)
+    saved = None
+    if resume is not None:
+        saved = run_checkpoint.read(resume)
+        if population is not None:
+            n, seed, sampler = population.n, population.seed, population.sampler
+        run_checkpoint.check_same_run(saved, run_checkpoint.config_of(
+            params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
+            settings=settings, snapshots=snaps))
+    run = Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
+               snaps=snaps, settings=settings, population=population, saved=saved)
+    return run.go(output=output, progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint,
+                  checkpoint_every=checkpoint_every)
+
+
+def resume(checkpoint, *, output=None, progress=None, max_wall_time: float | None = None, checkpoint_every="saved"):
+    """Continue the run saved in ``checkpoint`` from the file alone; return its complete dataset.
+
+    Parameters, load path, population, solver settings and state all come from the
+    checkpoint; the run goes on checkpointing to the same file every ``checkpoint_every``
+    steps (default: as the interrupted run did; None: at stage ends).  ``output``,
+    ``progress`` and ``max_wall_time`` as in :func:`simulate`.  The result is bit-identical
+    to an uninterrupted run (only the wall time and the history attribute differ).
+    """
+    checkpoint = _check_file("checkpoint", checkpoint)
+    if checkpoint is None:
+        raise ValueError("checkpoint = None is not valid: name the checkpoint file to resume from (str or os.PathLike)")
+    saved = run_checkpoint.read(checkpoint)
+    every = saved.meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
+    return simulate(**run_checkpoint.run_arguments(saved), output=output, progress=progress,
+                    max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every, resume=saved)
+
+
+def _check_int(name, value, lo, hi):
+    bad_type = isinstance(value, bool) or not isinstance(value, numbers.Integral)
+    if bad_type or value < lo or (hi is not None and value > hi):
+        rng = f"integer in [{lo}, {hi}]" if hi is not None else f"integer >= {lo}"
+        raise ValueError(f"{name} = {value!r} is not valid (valid range: {rng})")
+    return int(value)
+
+
+def _check_writable(name, value):
+    """A file path that can be written, checked before any work: not a folder, and its folder exists and is
+    writable or can be created (the nearest existing ancestor is a writable folder, not a file)."""
+    if value is None:
+        return None
+    path = os.path.abspath(os.fspath(value))
+    valid = "valid: a file path in a writable folder"
+    if os.path.isdir(path):
+        raise ValueError(f"{name} = {os.fspath(value)!r} is a folder ({valid})")
+    ancestor = os.path.dirname(path)
+    while not os.path.exists(ancestor):
+        ancestor = os.path.dirname(ancestor)
+    if not os.path.isdir(ancestor):
+        raise ValueError(f"{name} = {os.fspath(value)!r} lies under {ancestor!r}, which is a file ({valid})")
+    if not os.access(ancestor, os.W_OK):
+        raise ValueError(f"{name} = {os.fspath(value)!r}: the folder {ancestor!r} is not writable ({valid})")
+    return value
+
+
+def _check_file(name, value):
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise ValueError(f"{name} = {value!r} is not a file path (valid: str or os.PathLike, or None)")
+    return value
+
+
+def _check_snapshots(snapshots):
+    if snapshots is None:
+        return set(), False
+    if isinstance(snapshots, str):
+        if snapshots == "stage_ends":
+            return set(), True
+        raise ValueError(f"snapshots = {snapshots!r} must be None, 'stage_ends' or a sequence of step numbers")
+    try:
+        steps = set(snapshots)
+    except TypeError:
+        raise ValueError(f"snapshots = {snapshots!r} must be None, 'stage_ends' or a sequence of step numbers")
+    for s in steps:
+        if isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0:
+            raise ValueError(f"snapshot step {s!r} is not valid (valid range: integer >= 0)")
+    return {int(s) for s in steps}, False
