@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from .jit import kernel
 
 HALF_PI = 0.5 * math.pi
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def theta_m_and_slope(closure, inv_R, k_e):
     """theta_m(c, R) of Eq. (9) and d theta_m / d c [rad/m].
 
@@ -32,7 +33,7 @@ def theta_m_and_slope(closure, inv_R, k_e):
     return math.acos(y), k_e * inv_R / math.sqrt((1.0 - y) * (1.0 + y))
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def local_displacement(d1, d2, d3, cos_th, sin_th, cos_ph, sin_ph):
     """(delta_n, delta_s, delta_t) = (n.d, s.d, t.d), SPEC §4, with d = (Delta_1 - r, Delta_2, Delta_3)."""
     shear_ph = cos_ph * d2 + sin_ph * d3

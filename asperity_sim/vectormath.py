@@ -23,6 +23,7 @@ from llvmlite import ir
 from numba.core import cgutils
 
 from .geometry import HALF_PI
+from .jit import kernel
 
 # Taylor coefficients of the libm-free trigonometry below (for kernels that LLVM vectorises:
 # a loop with a libm call does not vectorise).  Truncation errors: sin, cos on [0, pi/2] below
@@ -60,7 +61,7 @@ def fsqrt(typingctx, x):
     return numba.types.float64(numba.types.float64), codegen
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def estrin16(coef, k, z, z2, z4, z8):
     """sum_i coef[k + i] z^i over i < 16 by Estrin's scheme (z2, z4, z8 the powers of z).
 
@@ -79,7 +80,7 @@ def estrin16(coef, k, z, z2, z4, z8):
     return (b0 + b1 * z4) + (b2 + b3 * z4) * z8
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def sin_cos_quarter(x):
     """(sin x, cos x) for x in [0, pi/2] without a libm call; error a few 1e-16."""
     z = x * x
@@ -89,7 +90,7 @@ def sin_cos_quarter(x):
     return x * estrin16(SIN_SERIES, 0, z, z2, z4, z8), estrin16(COS_SERIES, 0, z, z2, z4, z8)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def acos_unit(y):
     """arccos y for y in [0, 1] without a libm call; error a few 1e-16.
 

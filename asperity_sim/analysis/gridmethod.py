@@ -50,6 +50,7 @@ import xarray as xr
 from scipy import special
 
 from ..geometry import theta_m_and_slope
+from ..jit import kernel
 from ..kernels.layout import chunk_stride
 from ..laws.paper import paper_local
 from ..params import InterfaceParams
@@ -181,7 +182,7 @@ def grid_rule(params: InterfaceParams, resolution: GridResolution = PAPER) -> Gr
     return GridRule(res, r90, r, w_r, R, w_R, t_u, w_u, phi, w_phi)
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _grid_kernel(d1, d2, d3, closure, k_e, E_star, lam, mu, b, c, d,
                  r, w_r, R, w_R, t_u, w_u, phi, w_phi, rows, visited):
     """rows[iR] = w_R sum over (u, phi, r) of the weighted global force E[f] / N (Steps 2–3)."""

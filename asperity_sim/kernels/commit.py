@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from ..geometry import local_displacement
+from ..jit import kernel, template
 from .contact import asperity_theta, closure_and_slope, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
     BLOCK,
@@ -37,7 +38,29 @@ from .layout import (
 )
 from .reach import may_touch_follow
 
+# ---- the law's kernels: placeholders, bound to the law's own by kernels.specialise ----
 
+
+def commit_law(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch):
+    """The history law's commit of one contact (``History.commit``): writes its state, returns the energies.
+
+    A placeholder: each law's copy of the templates below calls that law's kernel here.
+    """
+    raise NotImplementedError("a template calls its law's kernel: compile it with kernels.specialise")
+
+
+def commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
+    """The law's commit of a block of committed contacts (``History.commit_block``, or :func:`each_commit`).
+
+    A placeholder: each law's copy of the templates below calls that law's kernel here.
+    """
+    raise NotImplementedError("a template calls its law's kernel: compile it with kernels.specialise")
+
+
+# ---- templates: each compiled once per law (kernels.specialise) with the options of its decorator ----
+
+
+@template(error_model="numpy")
 def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
     """The law's ``commit_block`` for a law without one: ``commit`` of each live committed contact."""
     for i in range(m):
@@ -47,6 +70,7 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
             res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
 
 
+@template(parallel=True, error_model="numpy")
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
                  theta_birth, n_store, partial, slot_geo):
     """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
@@ -121,7 +145,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
         partial[ic, :] = acc
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans):
     """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk.
 
@@ -155,6 +179,7 @@ def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_m
         counts[ic] = c
 
 
+@template(parallel=True, error_model="numpy")
 def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts,
                  arrays, n_store, partial):
     """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order)."""
@@ -189,7 +214,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
         partial[ic, :] = acc
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):
     """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place.
 
@@ -214,7 +239,7 @@ def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_bir
             theta_birth[j] = np.nan
 
 
-@numba.njit(cache=True)
+@kernel()
 def assign_slots(flag, counts, asp, n_slots, new_slots):
     """Give each asperity flagged 2 (a new contact) a slot, lowest free slot first, in asperity order.
 

@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import math
 
-import numba
-
 from ..geometry import local_displacement, theta_m_and_slope
+from ..jit import kernel
 from ..vectormath import acos_unit, fsqrt, sin_cos_quarter
 from .layout import (
     BLOCK,
@@ -55,7 +54,7 @@ from .layout import (
 )
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
     """Physical meridional angle theta = (2/pi) u theta_m(c, R) and d theta/d Delta_1 (SPEC §3)."""
     th_m, slope = theta_m_and_slope(closure, inv_R, k_e)
@@ -63,7 +62,7 @@ def asperity_theta(u_j, inv_R, closure, k_e, dclosure_d1):
     return scale * th_m, scale * slope * dclosure_d1
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1):
     """(g (3), T (9, row-major)): one contact's global force and its tangent d f / d Delta.
 
@@ -95,7 +94,7 @@ def global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1):
             n2 * A02 + s2 * A12 + t2 * A22)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
     """Add one contact's global force, force products, tangent and counts to ``acc``."""
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1)
@@ -125,7 +124,7 @@ def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
         acc[21] += 1.0
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth):
     """theta and d theta/d Delta_1 of asperity j: its birth angle while that contact lasts, else ``follow``."""
     th, th1 = asperity_theta(u[j], inv_R, closure, k_e, dc)
@@ -136,7 +135,7 @@ def contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_bi
     return th, th1
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def closure_and_slope(r_o, d1):
     """c = max(0, r_o + Delta_1) and dc/dDelta_1 (SPEC §3)."""
     closure = r_o + d1
@@ -145,7 +144,7 @@ def closure_and_slope(r_o, d1):
     return closure, 1.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def follow_angle(R_j, u_j, closure, k_e):
     """(theta, sin theta, cos theta, 1/R, cos theta_m unclipped, clipped, 2u/pi) under policy follow, branch-free.
 
@@ -161,14 +160,14 @@ def follow_angle(R_j, u_j, closure, k_e):
     return th, st, ct, inv_R, y, yc, scale
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def follow_slope(touch, y, yc, scale, k_e, inv_R, dc):
     """d theta / d Delta_1 of a contact as in :func:`asperity_theta` (zero where theta_m is clipped)."""
     inner = touch & (y > 0.0) & (y < 1.0)
     return scale * k_e * inv_R / fsqrt((1.0 - yc) * (1.0 + yc)) * dc if inner else 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e):
     """delta_n of asperity j at displacement ``delta_c`` (the committed one, or a reference), at its follow angle."""
     closure_c, _ = closure_and_slope(r_o, delta_c[0])
@@ -177,7 +176,7 @@ def committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e):
     return dn_c
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi):
     """Copy the inputs of slots b0..b0+m into ``geo``, contiguous; a free slot gets inputs out of contact."""
     for i in range(m):
@@ -192,7 +191,7 @@ def gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi):
         geo[G_U, i] = u[j]
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e):
     """Column i of ``geo``: overlap, local displacement and increment of a committed contact, policy follow.
 
@@ -215,7 +214,7 @@ def slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e):
     geo[G_TH1, i] = follow_slope(dn > 0.0, y, yc, scale, k_e, inv_R, dc)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8):
     """Column i of ``vals``: global force, tangent, counts and angle of one asperity; zeros out of contact
     (selects, so that the loop stays vectorised)."""
@@ -237,7 +236,7 @@ def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T
     vals[V_TH * BLOCK + i] = th if touch else 0.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def slot_values(vals, i, geo, out):
     """Column i of ``vals`` (as :func:`values_follow`) from the law's values ``out`` of a committed contact."""
     touch = geo[G_DN, i] > 0.0
@@ -249,7 +248,7 @@ def slot_values(vals, i, geo, out):
     store_values(vals, i, touch, code, geo[G_TH, i], g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def add_values(vals, m, acc):
     """Add columns 0..m of ``vals`` to the sums ``acc`` (N_ACC), in order."""
     F0, F1, F2 = acc[I_F], acc[I_F + 1], acc[I_F + 2]

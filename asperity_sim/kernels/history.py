@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from ..geometry import local_displacement
+from ..jit import template
 from .contact import (
     accumulate,
     add_values,
@@ -44,8 +45,30 @@ from .layout import (
 )
 from .reach import may_touch_follow, may_touch_within
 
-# ---- history laws: committed contacts live in slots (asp[sl] = asperity index, -1 a free slot) ----
+# ---- the law's kernels: placeholders, bound to the law's own by kernels.specialise ----
 
+
+def trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
+    """The history law's trial of one contact (``History.trial``): 13 values, never writes.
+
+    A placeholder: each law's copy of the templates below calls that law's kernel here.
+    """
+    raise NotImplementedError("a template calls its law's kernel: compile it with kernels.specialise")
+
+
+def trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
+    """The law's trial of a block of committed contacts (``History.trial_block``, or :func:`each_contact`).
+
+    A placeholder: each law's copy of the templates below calls that law's kernel here.
+    """
+    raise NotImplementedError("a template calls its law's kernel: compile it with kernels.specialise")
+
+
+# ---- templates: each compiled once per law (kernels.specialise) with the options of its decorator;
+# committed contacts live in slots (asp[sl] = asperity index, -1 a free slot) ----
+
+
+@template(parallel=True, error_model="numpy")
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
               theta_birth, partial, slot_geo):
     """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only).
@@ -102,6 +125,7 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
         partial[ic, :] = acc
 
 
+@template(error_model="numpy")
 def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """The law's ``trial_block`` for a law without one: ``trial`` of each committed contact in contact."""
     for i in range(m):
@@ -114,6 +138,7 @@ def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
                 out[a, i] = 0.0
 
 
+@template(parallel=True, error_model="numpy")
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
                partial, spans, index, listed, n_listed, box, n_box, tan_box):
     """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
@@ -187,6 +212,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
 
 
+@template(parallel=True, error_model="numpy")
 def snapshot_slots(slot_of, dn_c, code, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, arrays, theta_birth,
                    delta_n_out, theta_out, force_out, state_out):
     """Per-asperity overlap, angle, global force of the committed springs and state code (call right after commit)."""

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from ..jit import kernel
 
 CHUNK = 2048
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
@@ -24,7 +25,7 @@ N_ACC = 22
 _FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (i, j) of the products f_i f_j, in their order
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def chunk_stride(n_chunks):
     """A stride g coprime with n_chunks, near n_chunks / golden ratio.
 
@@ -44,7 +45,7 @@ def chunk_stride(n_chunks):
         g -= 1
 
 
-@numba.njit(cache=True)
+@kernel()
 def finish(partial, n_chunks, n, scale, out):
     """Stress, tangent, covariance, standard error and counts from the partial sums (SPEC §6).
 

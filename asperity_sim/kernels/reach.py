@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import math
 
-import numba
-
+from ..jit import kernel
 from ..sampling.reach import reach
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def cannot_touch(x, shear_ph, tan_max):
     """True when delta_n = cos(theta) x + sin(theta) shear_ph <= 0 for every theta in [0, theta_max].
 
@@ -31,7 +30,7 @@ def cannot_touch(x, shear_ph, tan_max):
     return -x > shear_ph * tan_max * (1.0 + 1e-9)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def may_touch_within(x_hi, s_hi, y_lo, y_hi, scale, tan_max):
     """False when the asperity cannot touch anywhere in a box of displacements, tested without trigonometry.
 
@@ -62,7 +61,7 @@ def may_touch_within(x_hi, s_hi, y_lo, y_hi, scale, tan_max):
     return ((x_hi > 0.0) & ~lifted) | ((s_hi > 0.0) & by_angle & by_own)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def may_touch_follow(x, shear_ph, y, scale, tan_max):
     """False when the asperity cannot touch at one displacement under policy follow (no trigonometry, no branch).
 
@@ -73,7 +72,7 @@ def may_touch_follow(x, shear_ph, y, scale, tan_max):
     return may_touch_within(x, shear_ph, y, y, scale, tan_max)
 
 
-@numba.njit(cache=True)
+@kernel()
 def bounds(r, R_min, r_o, k_e, beta, delta, theta_birth):
     """(n_active, tan_max): :func:`~asperity_sim.sampling.reach.reach` at delta and tan of its angle bound.
 

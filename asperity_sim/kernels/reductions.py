@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from ..geometry import local_displacement
+from ..jit import template
 from .contact import (
     accumulate,
     add_values,
@@ -29,9 +30,21 @@ from .contact import (
 from .layout import BLOCK, CHUNK, I_TH, N_ACC, N_IN, N_VAL, O_NA, X_CP, X_R, X_SP, X_U, X_X, chunk_stride, finish
 from .reach import bounds, cannot_touch, may_touch_follow
 
-# ---- templates: compiled once per law by :func:`kernels` (the names ``local``, ``trial`` and
-# ``commit_law`` are the law's kernels there; each template name is its own compiled copy) ----
+# ---- the law's kernel: a placeholder, bound to the law's own by kernels.specialise ----
 
+
+def local(dn, ds, dt, R, consts):
+    """The path-independent law's kernel (``Law.local``): 13 values, force, Jacobian, state code.
+
+    A placeholder: each law's copy of the templates below calls that law's kernel here.
+    """
+    raise NotImplementedError("a template calls its law's kernel: compile it with kernels.specialise")
+
+
+# ---- templates: each compiled once per law (kernels.specialise) with the options of its decorator ----
+
+
+@template(inline="always", error_model="numpy")
 def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts):
     """Column i of ``vals``: force, tangent and counts of one asperity under policy follow, branch-free.
 
@@ -52,6 +65,7 @@ def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts
     store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
 
 
+@template(error_model="numpy")
 def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial):
     """Row ic of ``partial`` under policy follow: :func:`values_follow` over the asperities that may touch.
 
@@ -98,6 +112,7 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
     partial[ic, :] = acc
 
 
+@template(inline="always", error_model="numpy")
 def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, tan_max,
                 partial):
     """Row ic of ``partial`` under policy birth: frozen angles where a committed contact lasts, scalar libm loop."""
@@ -117,6 +132,7 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
     partial[ic, :] = acc
 
 
+@template(inline="always", error_model="numpy")
 def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, has_birth,
               tan_max, partial):
     """Row ic of ``partial`` for a path-independent law, by policy."""
@@ -127,6 +143,7 @@ def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, 
         chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial)
 
 
+@template(parallel=True, error_model="numpy")
 def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial):
     """Partial sums of a path-independent law over the first n_active asperities, chunks in parallel.
 
@@ -143,6 +160,7 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
                   theta_birth, has_birth, tan_max, partial)
 
 
+@template(error_model="numpy")
 def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, beta, theta_birth, n, scale, partial,
                   out):
     """The flat result (:func:`finish`) at every row of ``deltas`` (m, 3), on the calling thread.
@@ -166,6 +184,7 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
         out[i, O_NA] = n_active
 
 
+@template(parallel=True, error_model="numpy")
 def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_birth, delta_n_out, theta_out,
                    force_out, state_out):
     """Per-asperity overlap, orientation, global force and state code of a path-independent law."""

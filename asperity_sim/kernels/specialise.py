@@ -1,86 +1,93 @@
 """The reduction kernels of one law: templates compiled with the law's kernels bound in.
 
-Owns :func:`kernels` (law -> its compiled reductions, built once per law) and
-:func:`specialise`, which copies each template with the law's kernels bound to its free names
-and compiles it under a name that carries the law and a fingerprint of its source, so numba's
-on-disk cache keeps each law's kernels apart (a function passed to a kernel as an argument, or
-captured in a closure, would defeat that cache).
+Owns :func:`kernels` (a law -> its compiled reductions, built once per law) and
+:func:`specialise`, which builds them.
+
+A template (``@template(...)``, :mod:`asperity_sim.jit`) is a plain function of
+:mod:`~asperity_sim.kernels.reductions` (path-independent laws), :mod:`~asperity_sim.kernels.history`
+or :mod:`~asperity_sim.kernels.commit` (history laws) that calls the law through placeholders
+defined at the top of its module: ``local``; ``trial`` and ``trial_block``; ``commit_law`` and
+``commit_block``.  For each law every template of its family is copied with globals in which
+the placeholders are that law's kernels (a law without block kernels gets :func:`each_contact`
+and :func:`each_commit`, which call its per-contact kernels) and every template name is the
+law's own copy, then compiled with the options of its decorator under the name
+``<template>__<law>_<fingerprint>``.  A closure over the law's kernels, or kernels passed as
+arguments, would defeat numba's on-disk cache; named copies of plain functions keep it, each
+law cached apart.  The fingerprint (:func:`law_fingerprint`) covers every kernel source of the
+package and the law's own files, so no edit in a copy's call graph leaves it stale.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import inspect
 import types
+from pathlib import Path
+
+import numba
 
 from .. import laws
-from ..laws import Law
+from ..jit import PACKAGE, source_fingerprint, tag
+from . import commit, history, reductions
+
+FAMILIES = {"path_independent": (reductions,), "history": (history, commit)}
+"""The template modules of each kind of law."""
 
 
-def specialise(templates: dict, law: Law, bindings: dict, jit: dict, aliases: dict | None = None) -> dict:
-    """numba kernels of the generic ``templates`` (name -> plain function) bound to one law.
+def templates_of(module) -> dict:
+    """The templates defined in ``module`` (name -> plain function with its ``jit_options``)."""
+    return {name: f for name, f in vars(module).items()
+            if callable(f) and hasattr(f, "jit_options") and f.__module__ == module.__name__}
 
-    Each template is copied with globals where the names in ``bindings`` (e.g. ``local``)
-    refer to the law's kernels and each template name refers to its own bound copy, and
-    compiled with the options ``jit[name]``.  The copies get the qualified name
-    ``<template>[<law name>-<fingerprint>]``, so numba caches each law's kernels on disk
-    under their own name, and a changed law compiles anew.  ``aliases`` (name -> template name)
-    bind further names to the bound copies (a default for a kernel the law does not give).
+
+def law_kernels(law: laws.Law) -> dict:
+    """What the placeholders of the law's templates become (name -> kernel, or the name of a template)."""
+    if law.path_independent:
+        return {"local": law.local}
+    h = law.history
+    return {"trial": h.trial, "commit_law": h.commit,
+            "trial_block": h.trial_block if h.trial_block is not None else "each_contact",
+            "commit_block": h.commit_block if h.commit_block is not None else "each_commit"}
+
+
+def law_fingerprint(law: laws.Law) -> str:
+    """Short hash of what the law's copies are compiled from: the package's kernel sources and the law's files.
+
+    A law defined outside the package (a test module, say) adds the files of its own kernels.
     """
-    import numba
+    h = hashlib.sha256(f"{law.name}:{source_fingerprint()}".encode())
+    for f in law_kernels(law).values():
+        if callable(f):
+            path = Path(inspect.getsourcefile(getattr(f, "py_func", f))).resolve()
+            if PACKAGE not in path.parents:
+                h.update(path.read_bytes())
+    return h.hexdigest()[:12]
 
-    namespaces = {}  # one per template module: the templates of a module call only each other
-    tag = f"{law.name}-{law.fingerprint}"
-    out = {}
-    for name, f in templates.items():
-        namespace = namespaces.setdefault(f.__module__, {**f.__globals__, **bindings})
-        copy = types.FunctionType(f.__code__, namespace, f.__name__, f.__defaults__, f.__closure__)
-        copy.__qualname__ = f"{f.__qualname__}[{tag}]"
-        copy.__module__ = f.__module__
-        copy.__doc__ = f.__doc__
-        out[name] = numba.njit(**jit[name])(copy)
-    for namespace in namespaces.values():
+
+def specialise(modules, law: laws.Law) -> dict:
+    """The templates of ``modules`` compiled for ``law`` (name -> numba dispatcher)."""
+    bindings = law_kernels(law)
+    label = f"{law.name}-{law_fingerprint(law)}"
+    namespaces, out = [], {}
+    for module in modules:
+        namespace = {**vars(module), **{k: v for k, v in bindings.items() if callable(v)}}
+        namespaces.append(namespace)
+        for name, f in templates_of(module).items():
+            copy = types.FunctionType(f.__code__, namespace, f.__name__, f.__defaults__, f.__closure__)
+            copy.__qualname__, copy.__module__, copy.__doc__ = f.__qualname__, f.__module__, f.__doc__
+            out[name] = numba.njit(**f.jit_options)(tag(copy, label))
+    for namespace in namespaces:  # each template name, and a default the law does not replace, is the law's copy
         namespace.update(out)
-        for name, template in (aliases or {}).items():  # a binding that is one of the templates' own copies
-            namespace[name] = out[template]
+        namespace.update({k: out[v] for k, v in bindings.items() if isinstance(v, str)})
     return out
 
 
-_PATH_INDEPENDENT = {"values_follow": dict(cache=True, inline="always", error_model="numpy"),
-                     "chunk_follow": dict(cache=True, error_model="numpy"),
-                     "chunk_birth": dict(cache=True, inline="always", error_model="numpy"),
-                     "chunk_any": dict(cache=True, inline="always", error_model="numpy"),
-                     "reduce_parallel": dict(cache=True, parallel=True, error_model="numpy"),
-                     "reduce_serial": dict(cache=True, error_model="numpy"),
-                     "snapshot_local": dict(cache=True, parallel=True, error_model="numpy")}
-_HISTORY = {"slot_pass": dict(cache=True, parallel=True, error_model="numpy"),
-            "fresh_pass": dict(cache=True, parallel=True, error_model="numpy"),
-            "commit_slots": dict(cache=True, parallel=True, error_model="numpy"),
-            "commit_fresh": dict(cache=True, parallel=True, error_model="numpy"),
-            "snapshot_slots": dict(cache=True, parallel=True, error_model="numpy"),
-            "each_contact": dict(cache=True, error_model="numpy"),
-            "each_commit": dict(cache=True, error_model="numpy")}
-
-
 @functools.lru_cache(maxsize=None)
-def _kernels_of(law: laws.Law) -> dict:
-    templates = _PATH_INDEPENDENT if law.path_independent else _HISTORY
-    from . import commit, history, reductions
-
-    g = {**vars(reductions), **vars(history), **vars(commit)}
-    aliases = {}
-    if law.path_independent:
-        bindings = {"local": law.local}
-    else:
-        bindings = {"trial": law.history.trial, "commit_law": law.history.commit}
-        for name, default, given in (("trial_block", "each_contact", law.history.trial_block),
-                                     ("commit_block", "each_commit", law.history.commit_block)):
-            if given is None:
-                aliases[name] = default
-            else:
-                bindings[name] = given
-    return specialise({name: g[name] for name in templates}, law, bindings, templates, aliases)
+def _compiled(law: laws.Law) -> dict:
+    return specialise(FAMILIES["path_independent" if law.path_independent else "history"], law)
 
 
 def kernels(law) -> dict:
-    """The generic kernels compiled for ``law`` (name -> numba dispatcher), built once per law."""
-    return _kernels_of(laws.get(law))
+    """The reductions compiled for ``law`` (a registered name or a :class:`~asperity_sim.laws.Law`), built once."""
+    return _compiled(laws.get(law))

@@ -30,15 +30,17 @@ A law is one module that defines numba kernels and a :class:`Law` object, and ca
   say); without them the generic reductions call ``trial`` and ``commit`` contact by contact.
 
 ``consts`` is the tuple of floats ``law.constants(params, k)`` (built once per run, so
-kernels never see Python objects).  Kernels must be ``@numba.njit(cache=True,
-inline="always")`` free functions; the generic reductions are compiled once per law
-(:func:`specialise`), because a function passed to a numba kernel as an argument, or
+kernels never see Python objects).  Kernels are free functions compiled with
+``@kernel(inline="always")`` (:mod:`asperity_sim.jit`); the generic reductions are compiled once per law
+(:mod:`asperity_sim.kernels.specialise`), because a function passed to a numba kernel as an argument, or
 captured in a closure, defeats numba's on-disk cache.
 """
 
 from .registry import FULL_SLIP, LAWS, OUT, PARTIAL, STICK, History, Law, get, register
 
-from . import paper  # noqa: E402,I001  (the built-in laws register themselves, in this order)
-from . import mdr  # noqa: E402
+# isort: split
+# the built-in laws register themselves, in this order
+from . import paper  # noqa: E402,I001
+from . import mdr  # noqa: E402,I001
 
 __all__ = ["Law", "History", "LAWS", "register", "get", "OUT", "STICK", "PARTIAL", "FULL_SLIP"]

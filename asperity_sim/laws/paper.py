@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import math
 
-import numba
-
+from ..jit import kernel
 from ..vectormath import fsqrt
 from .registry import Law, register
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def paper_core(dn, dst, sqrt_R, E_star, lam, mu):
     """(f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick) of a contact with overlap dn > 0 and shear dst >= 0.
 
@@ -50,7 +49,7 @@ def paper_core(dn, dst, sqrt_R, E_star, lam, mu):
     return f_n, k_n, k_sec, dF_dst, dF_dn, xs, stick
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def paper_values(dn, ds, dt, R, consts):
     """The law's kernel: force (f_n, f_s, f_t), Jacobian J (row-major) and state code of one contact."""
     E_star, lam, mu = consts[0], consts[1], consts[2]
@@ -68,7 +67,7 @@ def paper_values(dn, ds, dt, R, consts):
             code)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def paper_local(delta_n, delta_s, delta_t, sqrt_R, E_star, lam, mu):
     """Force and Jacobian terms of one contact (delta_n > 0), for the quadrature and the grid method.
 
@@ -79,7 +78,7 @@ def paper_local(delta_n, delta_s, delta_t, sqrt_R, E_star, lam, mu):
     return f_n, k_sec * delta_s, k_sec * delta_t, k_n, k_sec, dF_dst, dF_dn, not stick
 
 
-@numba.njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def paper_force(delta_n, delta_s, delta_t, R, E_star, lam, mu):
     """Local force (f_n, f_s, f_t) [N] of one asperity; zero out of contact."""
     if delta_n <= 0.0:

@@ -6,10 +6,7 @@ rest of the package asks; a law module registers itself when it is imported.
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 OUT, STICK, PARTIAL, FULL_SLIP = 0, 1, 2, 3  # contact state codes
@@ -68,26 +65,6 @@ class Law:
     @property
     def path_independent(self) -> bool:
         return self.history is None
-
-    @property
-    def fingerprint(self) -> str:
-        """Short hash of the source the law's kernels are built from: compiled reductions are cached under it.
-
-        numba invalidates a cached kernel only when its own file changes, not when a function it
-        calls does; the hash covers the files that define the law's kernels, the shared Hertz
-        contact, the geometry and the prefetch, so a change in any of them compiles anew (a law
-        whose kernels call helpers from other files should keep them in its own file).
-        """
-        h = self.history
-        funcs = [self.local] if h is None else [h.trial, h.commit, h.trial_block, h.commit_block]
-        files = {Path(inspect.getsourcefile(getattr(f, "py_func", f))) for f in funcs if f is not None}
-        files |= {p for f in list(files) if f.parent.name == "mdr" for p in f.parent.glob("*.py")}  # its package
-        here = Path(__file__).parent
-        files |= {here / "hertz.py", here.parent / "geometry.py", here.parent / "vectormath.py"}
-        h = hashlib.sha256(self.name.encode())
-        for path in sorted(files):
-            h.update(path.read_bytes())
-        return h.hexdigest()[:12]
 
 
 LAWS: dict[str, Law] = {}

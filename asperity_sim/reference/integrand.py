@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..geometry import HALF_PI, theta_m_and_slope
+from ..jit import kernel
 from ..laws.paper import paper_local
 
 # --------------------------------------------------------------------------------------
@@ -21,7 +21,7 @@ from ..laws.paper import paper_local
 # --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@kernel()
 def _height_integral(a_n, a_s, d_t, ct, st, sqrt_R, E_star, lam, mu, alpha, beta, log_norm,
                      r_max, chunk, tj, wj, tg, wg, brk):
     """Integral over r of H(r) (f_n, f_s, f_t) for one orientation (SPEC §2, §4, §5).
@@ -128,7 +128,7 @@ def _height_integral(a_n, a_s, d_t, ct, st, sqrt_R, E_star, lam, mu, alpha, beta
     return i_n, i_s, i_t
 
 
-@numba.njit(cache=True)
+@kernel()
 def _add_roots(c2, c1, c0, lim, out, nb):
     """Append the real roots h of c2 h² + c1 h + c0 = 0 with |h| < lim to ``out[nb:]``."""
     if c2 == 0.0:
@@ -154,7 +154,7 @@ def _add_roots(c2, c1, c0, lim, out, nb):
     return nb
 
 
-@numba.njit(cache=True)
+@kernel()
 def _phi_breaks(d1, S, ct, st, m, out):
     """Angles phi' in (0, pi) from the shear direction where the height integral is not smooth.
 
@@ -205,7 +205,7 @@ def _phi_breaks(d1, S, ct, st, m, out):
     return nb
 
 
-@numba.njit(cache=True)
+@kernel()
 def stress_kernel(d1, S, c_psi, s_psi, mode, closure, k_e, E_star, lam, mu, alpha, beta,
                    log_norm, r_max, chunk, R_x, R_w, tu, wu, split_u, tp, wp, phi_chunk, b, c,
                    d, tj, wj, tg, wg, out):

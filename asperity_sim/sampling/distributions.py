@@ -17,12 +17,13 @@ import numba
 import numpy as np
 from scipy import special
 
+from ..jit import kernel
 from ..params import InterfaceParams
 
 _EMPTY = np.empty(0)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _bracketed_newton(x, f, fp, lo, hi):
     """(next x, lo, hi): a Newton step on an increasing function with value f and slope fp at x,
     the bracket [lo, hi] of the root narrowed by the sign of f, and bisection when the step
@@ -37,7 +38,7 @@ def _bracketed_newton(x, f, fp, lo, hi):
     return xn, lo, hi
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def cos_u_at(target, b):
     """Invert F(x) = x + b (x³ - x)/2 on [0, 1] at F = target: marginal CDF of x = cos u (Eq. 10)."""
     lo, hi = 0.0, 1.0
@@ -52,7 +53,7 @@ def cos_u_at(target, b):
     return x
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def phi_at(p, xi, b, c, d):
     """Invert the conditional CDF of phi given x = cos u (Eq. 10) on [0, 2 pi) at probability p."""
     two_pi = 2.0 * math.pi
@@ -71,7 +72,7 @@ def phi_at(p, xi, b, c, d):
     return ph
 
 
-@numba.njit(cache=True)
+@kernel()
 def _cos_u_from_uniform(p, b):
     out = np.empty_like(p)
     for i in range(p.size):
@@ -79,7 +80,7 @@ def _cos_u_from_uniform(p, b):
     return out
 
 
-@numba.njit(cache=True)
+@kernel()
 def _phi_from_uniform(p, x, b, c, d):
     out = np.empty_like(p)
     for i in range(p.size):
@@ -107,7 +108,7 @@ _AS241_F = (1.0, 0.59983220655588793769, 0.13692988092273580531, 0.0148753612908
             2.04426310338993978564e-15)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _ratio7(num, den, t):
     """num(t) / den(t) for two degree-7 polynomials (coefficients lowest degree first), Horner."""
     a = num[7]
@@ -118,7 +119,7 @@ def _ratio7(num, den, t):
     return a / b
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _ndtri_at(p):
     """Standard normal quantile Phi^-1(p) for p in [0, 1] (-inf at 0, +inf at 1)."""
     q = p - 0.5
@@ -135,7 +136,7 @@ def _ndtri_at(p):
     return -x if q < 0.0 else x
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def radius_at(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi):
     """Truncated Gaussian relative radius [m] at probability p (SPEC §2); never 0."""
     R = R_m + R_sigma * _ndtri_at(lo_cdf + p * (hi_cdf - lo_cdf))
@@ -206,7 +207,7 @@ def quantile_table(shape: float):
     return nodes, np.array(grid + [1.0 / shape])
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _hermite_at(t, nodes, piece, t0, h, cells):
     """Cubic Hermite interpolant of piece ``piece`` of the quantile tables at t (NaN outside it)."""
     s = (t - t0) / h
@@ -220,14 +221,14 @@ def _hermite_at(t, nodes, piece, t0, h, cells):
             + (-2.0 * s3 + 3.0 * s2) * x[k + 1] + (s3 - s2) * h * d[k + 1])
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _hermite_many(t, nodes, t0, h, cells, out):
     """out = :func:`_hermite_at` of piece 0 at every t."""
     for i in numba.prange(t.size):
         out[i] = _hermite_at(t[i], nodes, 0, t0, h, cells)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def gamma_quantile_at(p, nodes, grid):
     """Unit-scale gamma quantile at probability p from the tables of :func:`quantile_table`
     (NaN where no accurate table reaches: the caller uses scipy there)."""
@@ -238,7 +239,7 @@ def gamma_quantile_at(p, nodes, grid):
     return _hermite_at(p, nodes, 0, grid[0], grid[1], grid[2])
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _gamma_quantiles(p, nodes, grid, out):
     """out = :func:`gamma_quantile_at` at every p."""
     for i in numba.prange(p.size):
@@ -275,7 +276,7 @@ def radius_constants(params: InterfaceParams):
     return params.R_m, params.R_sigma, float(special.ndtr(a)), float(special.ndtr(b)), lo, hi
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _radii(p, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, out):
     for i in numba.prange(p.size):
         out[i] = radius_at(p[i], R_m, R_sigma, lo_cdf, hi_cdf, lo, hi)

@@ -14,6 +14,7 @@ import math
 import numba
 import numpy as np
 
+from ..jit import kernel
 from .distributions import cos_u_at, gamma_quantile_at, phi_at, radius_at
 from .sobol import BITS as SOBOL_BITS
 from .sobol import net_next, net_point, sobol_points
@@ -21,7 +22,7 @@ from .sobol import net_next, net_point, sobol_points
 NET_BLOCK = 4096  # Sobol' points per parallel block of sample_net
 
 
-@numba.njit(cache=True)
+@kernel()
 def argsort_unit(p):
     """Stable argsort of values in [0, 1) in O(n): counting sort into n equal buckets, then
     insertion sort inside each bucket (about one value per bucket for uniform points)."""
@@ -49,7 +50,7 @@ def argsort_unit(p):
     return order
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def gather(U, order, c0, c1, c2, c3):
     """c_k[i] = U[order[i], k]: the points in sorted order, one contiguous column per coordinate."""
     for i in numba.prange(order.size):
@@ -57,7 +58,7 @@ def gather(U, order, c0, c1, c2, c3):
         c0[i], c1[i], c2[i], c3[i] = U[j, 0], U[j, 1], U[j, 2], U[j, 3]
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d):
     """(unit-scale gamma height, radius [m], u [rad], cos phi, sin phi) of the uniforms (p_r, p_R, p_u, p_phi),
     SPEC §2–§3 (Eq. 10).
@@ -75,7 +76,7 @@ def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma
     return r, R, math.acos(x), math.cos(ph), math.sin(ph)
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi,
                   b, c, d):
     """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each."""
@@ -84,7 +85,7 @@ def inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_
             r[i], R[i], u[i], cos_phi[i], p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
                hi_cdf, lo, hi, b, c, d):
     """Points blk NET_BLOCK .. (blk + 1) NET_BLOCK - 1 of the net, from the first one computed directly."""
@@ -99,7 +100,7 @@ def _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid,
         net_next(W, i, x)
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
                 lo, hi, b, c, d):
     """The scrambled Sobol' net of r.size = 2^m points (:func:`asperity_sim.sampling.sobol.net_directions`) through
@@ -110,7 +111,7 @@ def sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radi
                    hi_cdf, lo, hi, b, c, d)
 
 
-@numba.njit(cache=True)
+@kernel()
 def sample_net_serial(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
                        hi_cdf, lo, hi, b, c, d):
     """:func:`sample_net` of one block (r.size <= NET_BLOCK) on the calling thread: the same points, without
@@ -119,7 +120,7 @@ def sample_net_serial(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, gri
                lo, hi, b, c, d)
 
 
-@numba.njit(cache=True)
+@kernel()
 def clip_running_max(r, r_band):
     """r = running max of min(r, r_band), in place: round-off in the quantile never breaks the sort."""
     m = 0.0

@@ -19,10 +19,10 @@ import numbers
 from dataclasses import dataclass
 from functools import cached_property
 
-import numba
 import numpy as np
 from scipy import special
 
+from ..jit import kernel
 from ..params import InterfaceParams
 from .distributions import band_probability, quantile_table, radius_constants
 from .draws import (
@@ -61,7 +61,7 @@ def _check_seed(seed):
 UNIT_TOL = 1e-12  # largest |cos² phi + sin² phi - 1| accepted in a Population
 
 
-@numba.njit(cache=True)
+@kernel()
 def _all_valid(r, R, u, cos_phi, sin_phi):
     """True if every asperity keeps the invariants of :func:`_first_invalid`; branch-free (vectorises)."""
     half_pi = 0.5 * math.pi
@@ -77,7 +77,7 @@ def _all_valid(r, R, u, cos_phi, sin_phi):
     return ok
 
 
-@numba.njit(cache=True)
+@kernel()
 def _first_invalid(r, R, u, cos_phi, sin_phi):
     """(code, i): the first asperity i that breaks an invariant the kernels rely on, code 0 if none.
 

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from ..jit import kernel
 
-@numba.njit(cache=True)
+
+@kernel()
 def reach(r, R_min, r_o, k_e, beta, d1, d2, d3, theta_max):
     """(n_active, theta bound): asperities, lowest first, that can touch at Delta (SPEC §3–§4).
 

@@ -22,6 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..jit import kernel
+
 BITS = 32  # digits per coordinate (N_MAX < 2^31 points); held in int64: uint64 -> float is slow on x86-64
 DIM = 4
 BLOCK = 1 << 16  # points per parallel block
@@ -62,7 +64,7 @@ def scrambled_directions(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
     return _scramble(_DIRECTIONS, coins), shift
 
 
-@numba.njit(cache=True)
+@kernel()
 def _scramble(v, coins):
     """out[j, k] = L_j v[j, k] over GF(2): digit i = digit i of v xor the digits l < i with coins[j, i, l] = 1."""
     out = np.zeros_like(v)
@@ -80,7 +82,7 @@ def _scramble(v, coins):
     return out
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _xor_columns(x, v, key):
     """x[j] ^= v[j, b] for every set bit b of key."""
     b = 0
@@ -92,7 +94,7 @@ def _xor_columns(x, v, key):
         b += 1
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def _trailing_zeros(m):
     c = 0
     while not m & 1:
@@ -101,7 +103,7 @@ def _trailing_zeros(m):
     return c
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _fill(v, shift, out):
     """out[i, j] = (shift_j xor (xor of v[j, k] over the bits k of gray(i))) / 2^BITS, Gray-code order."""
     n = out.shape[0]
@@ -133,7 +135,7 @@ def net_directions(m: int, seed) -> tuple[np.ndarray, np.ndarray, int]:
     return _cell_directions(v, m), shift, int(shift[0]) >> (BITS - m) if m > 0 else 0
 
 
-@numba.njit(cache=True)
+@kernel()
 def _cell_directions(v, m):
     """W of :func:`net_directions`: column b is the xor of v[:, k] over the Gray-code digits k of the point
     in cell 2^b xor s, found by a triangular solve over GF(2) (v[0, k] has its highest cell digit at m - 1 - k)."""
@@ -148,14 +150,14 @@ def _cell_directions(v, m):
     return W
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def net_point(W, shift, s, c, x):
     """x = the BITS-bit digits of the point in first-coordinate cell c (see :func:`net_directions`)."""
     x[:] = shift
     _xor_columns(x, W, c ^ s)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def net_next(W, c, x):
     """Move x from the point in cell c to the point in cell c + 1 (the bits of c xor (c + 1))."""
     _xor_columns(x, W, c ^ (c + 1))

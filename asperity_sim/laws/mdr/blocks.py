@@ -8,9 +8,9 @@ contact ``AHEAD`` slots on asked for in advance (:func:`asperity_sim.vectormath.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...jit import kernel
 from ...vectormath import prefetch
 from .commit import committed_commit_scaled, mdr_commit
 from .springs import FAST, LANES, state_code
@@ -19,7 +19,7 @@ from .trial import committed_springs_scaled, contact_scales
 AHEAD = 4  # a block kernel asks for the springs of the contact this many slots ahead (asperity_sim.vectormath)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def prefetch_springs(w_all, sl, n):
     """Ask for the cache lines of the first n springs (both components) of slot ``sl``, to be read soon."""
     per_line = max(1, 64 // w_all.itemsize)
@@ -35,7 +35,7 @@ S_C, S_Q, S_FN, S_KN, S_NIN, S_RHO, S_DRHO, S_NC, S_E, S_EC = range(10)
 N_SCALES = 10
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam):
     """A block's table of contact scales (N_SCALES, m): column i :func:`contact_scales` of slot b0 + i (its
     overlap dn[i], radius R[i], committed overlap and spacing from ``dn_c`` and ``h_all``) if in contact
@@ -55,14 +55,14 @@ def block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam):
     return sc
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def prefetch_ahead(w_all, sc, b0, i, m):
     """Prefetch the springs in contact, and those entering, of the contact AHEAD rows after row i of a block."""
     if i + AHEAD < m:
         prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[S_NIN, i + AHEAD]), int(sc[S_NC, i + AHEAD])) + LANES)
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     """:func:`mdr_trial` of the committed contacts in slots b0 .. b0 + m (dn[i] > 0; zeros in ``out`` elsewhere).
 
@@ -87,7 +87,7 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
         out[12, i] = float(state_code(n_springs, n_slip))
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res):
     """:func:`mdr_commit` of the committed contacts in slots b0 .. b0 + m where ``live`` (res[:, i] = its 5 values).
 

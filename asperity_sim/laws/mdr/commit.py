@@ -7,15 +7,15 @@ increment (work, stored energy, dissipation) returned for the balance.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...jit import kernel
 from ..hertz import hertz_energy
 from .springs import FAST, LANES, continuing_commit, entering_tail, release, spacing, spring_range, state_code
 from .trial import contact_scales, springs
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out):
     """:func:`springs` of a commit: writes the new springs to ``w_out``; (n_springs, n_slip, work, d_stored,
     dissipation) (no force or Jacobian: LLVM drops their arithmetic)."""
@@ -23,7 +23,7 @@ def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, 
     return out[8], out[9], out[10], out[11], out[12]
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh):
     """:func:`commit_springs` writing the new springs over the committed ones ``w`` (they must fit).
 
@@ -33,7 +33,7 @@ def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled
     return out[8], out[9], out[10], out[11], out[12]
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     """:func:`springs` of a commit of a committed contact (dn > 0) whose springs fit, in place.
 
@@ -43,7 +43,7 @@ def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     return committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c):
     """:func:`committed_commit` given the contact's :func:`contact_scales`.
 
@@ -77,7 +77,7 @@ def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drh
             dissipation + q * dd + dd2)
 
 
-@numba.njit(cache=True)
+@kernel()
 def merge_pairs(w, n):
     """Coarsen n springs to ceil(n/2) by merging neighbours (spacing doubles), in place; w: (2, >= n).
 
@@ -101,7 +101,7 @@ def merge_pairs(w, n):
     return lost
 
 
-@numba.njit(cache=True)
+@kernel()
 def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch):
     """Write the springs of slot ``sl`` at the converged displacement; (code, work, stored, dissipation, coarsenings).
 

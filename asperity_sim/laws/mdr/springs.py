@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import math
 
-import numba
-
+from ...jit import kernel
 from ...vectormath import fsqrt
-from ..registry import FULL_SLIP, PARTIAL, STICK
 from ..hertz import hertz_roots
+from ..registry import FULL_SLIP, PARTIAL, STICK
 
 FLOOR_FRACTION = 1e-5  # dn_floor / ((alpha + 1) beta)
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def spacing(fresh, dn, dn_ref, R, k, dn_floor, h_slot):
     """(h, scaled): the committed spacing, or for a fresh contact sqrt(R max(dn, dn_ref, dn_floor))/k
     and whether it scales with dn (then x_i²/R is proportional to dn)."""
@@ -35,14 +34,14 @@ FAST = {"reassoc", "contract"}  # sums over springs may be reordered (the loops 
 LANES = 8  # doubles per vector register (AVX-512): spring loops are padded to whole vectors
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def spring_x2(c, i):
     """x_i²/R = c (i + 1/2)² of spring i, written once so that every loop takes the same stick/slip decisions."""
     y = i + 0.5
     return c * (y * y)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt, lm_r, dlim, can_stick):
     """One spring's new vector and its share of the force and Jacobian, branch-free.
 
@@ -74,7 +73,7 @@ def spring_step(wcs, wct, memory, u, u_c, g, gap, dds, ddt, lm_r, dlim, can_stic
             a if stick else a * P11)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1, can_stick):
     """Sums of the springs 0 <= i < n_cont that continue from their committed vectors (u_i^c > 0) in a trial.
 
@@ -111,7 +110,7 @@ def continuing_trial(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, dlim0, dlim1, can_
     return Fs, Ft, Gs, n_stick + A, -B, Gt, n_stick + C, n_stick
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def continuing_commit(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, can_stick):
     """:func:`continuing_trial` of a commit: the new vectors of springs 0 <= i < n_cont written over ``w``.
 
@@ -145,7 +144,7 @@ def continuing_commit(w, n_cont, n_pad, c, dn, dds, ddt, lm_r, can_stick):
     return n_stick, work, dissipation, stored
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
     """(f_n, k_n, n_in, rho, drho, sqrt R, sqrt dn): Hertz force and stiffness, springs in contact, Coulomb scale.
 
@@ -164,7 +163,7 @@ def coulomb_scale(dn, dn_c, R, E_star, h, c, scaled):
     return f_n, k_n, n_in, rho, drho, sR, sdn
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def add_spring(i, wcs, wct, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r, can_stick, q,
                w_out, write):
     """Spring i (committed vector (wcs, wct) if ``held``): its share (F_s, F_t, J10, J11, J12, J20, J22, sticks,
@@ -191,7 +190,7 @@ def add_spring(i, wcs, wct, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm
     return fs, ft, j10, j11, j12, j20, j22, 1.0 if stick else 0.0, work, de, dd
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def spring_range(i0, i1, i_end, w, held, c, dn, dn_c, inv_dn, scaled, gap, dds, ddt, lm, rho, drho, lm_r,
                  can_stick, q, w_out, write):
     """Sums of :func:`add_spring` over springs i0 <= i < i1 (their committed vectors from ``w`` if ``held``).
@@ -219,7 +218,7 @@ def spring_range(i0, i1, i_end, w, held, c, dn, dn_c, inv_dn, scaled, gap, dds, 
     return Fs, Ft, J10, J11, J12, J20, J22, n_stick, work, stored_change, dissipation
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def springs_below(dn, c, root):
     """N: springs i < N have u_i = dn - c (i + 1/2)² > 0, from root ~ sqrt(dn / c) (0 if not positive).
 
@@ -233,7 +232,7 @@ def springs_below(dn, c, root):
     return N
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def tail_sums(i0, N, dn, dn_c, c):
     """(m, sum u_i, sum -u_i^c) over the springs i0 <= i < N, u_i = dn - c (i + 1/2)², in closed form (branch-free)."""
     N = N if N > i0 else i0
@@ -242,7 +241,7 @@ def tail_sums(i0, N, dn, dn_c, c):
     return m, m * dn - c * sq, c * sq - m * dn_c
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def entering_tail(i0, dn, dn_c, c):
     """(m, sum u_i, sum -u_i^c) over the springs i >= i0 in contact, u_i = dn - c (i + 1/2)², in closed form.
 
@@ -254,7 +253,7 @@ def entering_tail(i0, dn, dn_c, c):
     return tail_sums(i0, springs_below(dn, c, fsqrt(dn / c)), dn, dn_c, c)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def release(w, start, end, dn, dn_c, c, dds, ddt, q):
     """Work, change of stored energy and dissipation of the stored springs start <= i < end leaving contact.
 
@@ -276,7 +275,7 @@ def release(w, start, end, dn, dn_c, c, dds, ddt, q):
     return work, stored_change, dissipation
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def state_code(n_springs, n_slip):
     if n_slip == 0:
         return STICK

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import math
 
-import numba
-
+from ...jit import kernel
 from ...vectormath import fsqrt
 from ..hertz import hertz, hertz_energy_roots
 from .springs import (
@@ -29,7 +28,7 @@ from .springs import (
 )
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, write):
     """Tangential force, its Jacobian, counts and (commit) energy of one contact's springs.
 
@@ -75,7 +74,7 @@ def springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w_out, 
     return Fs, Ft, J10, J11, J12, J20, J12, J22, n_in, n_in - int(n_stick), work, stored_change, dissipation
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def contact_scales(dn, dn_c, R, h, E_star, lam):
     """(c, q, f_n, k_n, n_in, rho, drho, n_c, e, e_c) of a committed contact at overlap dn > 0: c = h²/R,
     q = 2 E* h / lam, Hertz, springs in contact, Coulomb scale (:func:`coulomb_scale`), the springs in
@@ -90,7 +89,7 @@ def contact_scales(dn, dn_c, R, h, E_star, lam):
             hertz_energy_roots(dn, sR, sdn, E_star), hertz_energy_roots(dn_c, sR, sdc, E_star))
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     """:func:`springs` of a committed contact in a trial, without energy or scratch: the hot loop of a run.
 
@@ -100,7 +99,7 @@ def committed_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
     return committed_springs_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, k_n, n_in, rho, drho, n_c)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@kernel(inline="always", error_model="numpy")
 def committed_springs_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, k_n, n_in, rho, drho, n_c):
     """:func:`committed_springs` given the contact's :func:`contact_scales`.
 
@@ -165,7 +164,7 @@ def committed_springs_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, f_n, k_n, n_i
     return q * Fs, q * Ft, q * J10, q * J11, q * J12, q * J20, q * J12, q * J22, n_in, n_slip, f_n, k_n
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FAST)
+@kernel(error_model="numpy", fastmath=FAST)
 def fresh_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled):
     """:func:`springs` of a contact without history in a trial (``w`` any spring row, unused)."""
     Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip, _, _, _ = springs(
@@ -173,7 +172,7 @@ def fresh_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled):
     return Fs, Ft, J10, J11, J12, J20, J21, J22, n_springs, n_slip
 
 
-@numba.njit(cache=True, inline="always")
+@kernel(inline="always")
 def mdr_trial(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh):
     """Force, Jacobian and state code of one contact (dn > 0) from its committed springs; reads only."""
     E_star, lam, mu, k, dn_floor = consts

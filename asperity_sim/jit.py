@@ -1,0 +1,79 @@
+"""How a function becomes a compiled kernel: its compile options, and an on-disk cache that cannot go stale.
+
+Owns the two decorators every kernel of the package is written with:
+
+- :func:`kernel` (``@kernel(parallel=True)``): compiled as written, ``numba.njit(cache=True, ...)``;
+- :func:`template` (``@template(parallel=True)``): a generic reduction whose law kernels are
+  placeholders, compiled once per law by :mod:`asperity_sim.kernels.specialise` with the
+  options given here.
+
+Why a fingerprint.  numba caches a compiled kernel on disk and reuses it as long as the
+kernel's own source file is unchanged; it does not notice an edit in a function the kernel
+calls from another file, and would go on running the old code.  A kernel can only call
+compiled code, and every compiled function of the package is written with one of these
+decorators or with numba itself (intrinsics), so :func:`source_fingerprint` hashes every
+source file that holds one (:data:`COMPILED`), and every cached kernel is
+compiled under a name that carries the fingerprint (``hertz__3f2a...``): an edit anywhere in a
+kernel's call graph gives every kernel a new name, hence a fresh compile, never a stale one.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import re
+from pathlib import Path
+
+import numba
+
+__all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag"]
+
+PACKAGE = Path(__file__).resolve().parent
+COMPILED = re.compile(rb"^@(kernel|template)\(|^\s*(import|from) numba\b", flags=re.M)
+"""What marks a source file that holds compiled code: a decorator of this module, or an import of numba."""
+
+
+def kernel_sources() -> list:
+    """The source files of the package that hold compiled code, sorted."""
+    return sorted(p for p in PACKAGE.rglob("*.py") if COMPILED.search(p.read_bytes()))
+
+
+@functools.cache
+def source_fingerprint() -> str:
+    """Short hash of every source file of the package that holds compiled code (paths and contents)."""
+    h = hashlib.sha256()
+    for path in kernel_sources():
+        h.update(path.relative_to(PACKAGE).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def tag(f, label: str):
+    """``f`` with ``label`` appended to its qualified name, which names its entries in numba's cache.
+
+    Only identifier characters: numba builds variable names from the names of the functions a
+    parallel loop calls.
+    """
+    f.__qualname__ = f"{f.__qualname__}__{re.sub(r'[^0-9A-Za-z_]', '_', label)}"
+    return f
+
+
+def kernel(**options):
+    """Decorator: compile ``f`` with ``numba.njit(cache=True, **options)`` under the source fingerprint."""
+    def compile_(f):
+        return numba.njit(cache=True, **options)(tag(f, source_fingerprint()))
+
+    return compile_
+
+
+def template(**options):
+    """Decorator: mark ``f`` as a reduction template compiled per law with ``numba.njit(cache=True, **options)``.
+
+    ``f`` stays a plain Python function; :func:`asperity_sim.kernels.specialise.specialise`
+    compiles a copy of it for each law, with the law's kernels bound to its placeholders.
+    """
+    def mark(f):
+        f.jit_options = {"cache": True, **options}
+        return f
+
+    return mark

@@ -1,0 +1,99 @@
+"""Compiled kernels and their on-disk cache (asperity_sim/jit.py, asperity_sim/kernels/specialise.py).
+
+numba reuses a cached kernel as long as the kernel's own file is unchanged; the package's
+fingerprint makes an edit anywhere in a kernel's call graph compile the kernel anew.  The slow
+test edits callees in a copy of the package, in other files than their callers, and checks that
+a second process with the same cache folder runs the edited code.
+"""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from asperity_sim import jit, laws
+from asperity_sim.kernels import commit, history, reductions, specialise
+
+PACKAGE = Path(jit.__file__).resolve().parent
+
+
+def test_every_file_with_compiled_code_is_in_the_fingerprint():
+    """Every file that compiles something (a kernel, a template, a numba intrinsic) is hashed."""
+    hashed = set(jit.kernel_sources())
+    for path in PACKAGE.rglob("*.py"):
+        text = path.read_text()
+        compiles = re.search(r"^@(kernel|template)\(|^@numba\.|numba\.njit", text, flags=re.M)
+        assert not compiles or path in hashed, path
+    assert {PACKAGE / "laws" / "hertz.py", PACKAGE / "sampling" / "reach.py", PACKAGE / "vectormath.py"} <= hashed
+    assert PACKAGE / "ui" / "cli.py" not in hashed  # a file without compiled code does not invalidate them
+
+
+def test_templates_carry_their_options_and_placeholders_are_module_names():
+    for module, placeholders in ((reductions, {"local"}), (history, {"trial", "trial_block"}),
+                                 (commit, {"commit_law", "commit_block"})):
+        found = specialise.templates_of(module)
+        assert found and all(f.jit_options["cache"] for f in found.values())
+        for name in placeholders:  # defined in the module, never compiled as written
+            with pytest.raises(NotImplementedError):
+                getattr(module, name)(*([None] * getattr(module, name).__code__.co_argcount))
+    assert specialise.templates_of(reductions)["reduce_parallel"].jit_options["parallel"] is True
+
+
+def test_each_law_gets_its_own_compiled_copies_named_by_law_and_fingerprint():
+    paper, mdr = specialise.kernels("paper"), specialise.kernels("mdr")
+    assert set(paper) == set(specialise.templates_of(reductions))
+    assert set(mdr) == set(specialise.templates_of(history)) | set(specialise.templates_of(commit))
+    assert paper["reduce_parallel"].py_func.__qualname__ == (
+        f"reduce_parallel__paper_{specialise.law_fingerprint(laws.get('paper'))}")
+    assert specialise.kernels("paper") is paper  # built once
+
+
+EDITS = {  # file in the copy: (text, replacement) -- each a callee in another file than its callers
+    "laws/paper.py": ("C = (4.0 / 3.0) * E_star * sqrt_R", "C = (8.0 / 3.0) * E_star * sqrt_R"),
+    "sampling/reach.py": ("r_max += 1e-12 * max(abs(r_max), beta)", "r_max += 0.5 * beta"),
+}
+
+PROBE = """
+import json, numpy as np
+import asperity_sim as asim
+from asperity_sim import presets
+from asperity_sim.kernels.reach import bounds
+p = presets.R1.replace(mu=0.0)
+pop = asim.Population.sample(p, 3000, seed=3)
+d = np.array([12e-6, 0.0, 0.0])
+ev = asim.evaluate(pop, d)
+n_active, _ = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, d, np.empty(0))
+print(json.dumps({"file": asim.__file__, "stress": ev.stress.tolist(), "n_active": int(n_active)}))
+"""
+
+
+def _probe(root, cache):
+    env = {**os.environ, "PYTHONPATH": str(root), "NUMBA_CACHE_DIR": str(cache), "NUMBA_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", PROBE], env=env, cwd=root, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow  # two fresh processes compile the paper law's kernels
+def test_editing_a_callee_in_another_file_compiles_anew(tmp_path):
+    root = tmp_path / "copy"
+    shutil.copytree(PACKAGE, root / "asperity_sim", ignore=shutil.ignore_patterns("__pycache__"))
+    cache = tmp_path / "numba_cache"
+    before = _probe(root, cache)
+    assert before["file"] == str(root / "asperity_sim" / "__init__.py")
+    for name, (old, new) in EDITS.items():
+        path = root / "asperity_sim" / name
+        text = path.read_text()
+        assert text.count(old) == 1, name
+        path.write_text(text.replace(old, new))
+    after = _probe(root, cache)  # same cache folder: a stale kernel would give the numbers of before
+    # mu = 0: no tangential force, so doubling the Hertz constant doubles the normal stress exactly
+    assert after["stress"][0] == 2.0 * before["stress"][0] > 0.0
+    # the wider height margin of reach() reaches asperities that the bound of before excluded
+    assert after["n_active"] > before["n_active"]
