@@ -15,6 +15,9 @@ import numpy as np
 from .jit import kernel
 
 HALF_PI = 0.5 * math.pi
+POLICIES = ("follow", "birth")
+"""How a contact's orientation evolves (SPEC §3): it follows theta = (2/pi) u theta_m(c, R) as the closure
+changes, or keeps the angle it was born with while the contact lasts."""
 
 
 @kernel(inline="always")

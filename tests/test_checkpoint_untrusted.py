@@ -84,7 +84,7 @@ def _copy(src, dst):
 
 def good_meta(config=None):
     cfg = config or {"params": presets.S1.as_dict(), "n": 3, "seed": 0, "sampler": "random", "law": "paper",
-                     "policy": "follow", "k": None, "path": {"name": "x", "stages": [{}]}, "settings": {},
+                     "policy": "follow", "law_options": {}, "path": {"name": "x", "stages": [{}]}, "settings": {},
                      "snapshots": []}
     return {"format": ckpt.FORMAT, "version": asim.__version__, "config": cfg}
 

@@ -1,4 +1,4 @@
-"""The documentation's generated page is up to date with the output registry."""
+"""The documentation's generated pages are up to date with the output registry and the law registry."""
 
 import importlib.util
 from pathlib import Path
@@ -12,6 +12,16 @@ def test_variables_page_is_generated_from_the_registry():
     spec.loader.exec_module(mod)
     committed = (DOCS / "variables.md").read_text(encoding="utf-8")
     assert committed == mod.render(), "docs/variables.md is stale: run python3 docs/make_variables.py"
+
+
+def test_laws_page_is_generated_from_the_law_registry():
+    spec = importlib.util.spec_from_file_location("make_laws", DOCS / "make_laws.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    committed = (DOCS / "laws.md").read_text(encoding="utf-8")
+    assert committed == mod.render(), "docs/laws.md is stale: run python3 docs/make_laws.py"
+    for name in ("paper", "mdr", "`k`", "`spring_dtype`", "coarsenings"):
+        assert name in committed
 
 
 ROOT = DOCS.parent

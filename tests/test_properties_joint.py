@@ -206,7 +206,7 @@ def test_every_property_is_registered_with_units():
 
 from pathlib import Path  # noqa: E402
 
-from asperity_sim import paths, presets  # noqa: E402
+from asperity_sim import laws, paths, presets  # noqa: E402
 from asperity_sim.errors import SceneError  # noqa: E402
 from asperity_sim.runs.scene import Scene  # noqa: E402
 from asperity_sim.runs import engine as EN  # noqa: E402
@@ -302,7 +302,8 @@ def test_auto_engine_picks_serial_for_small_and_cluster_for_large_sweeps():
     assert EN.choose_engine(many_small[:1], workers=2, cpus=2)[0] == "serial"  # one run is one task
     # the model: serial = sum of runs on all threads; cluster = start + runs on cpus // workers threads, shared
     one = EN.estimate_run_seconds(many_small[0], 2)
-    assert one == pytest.approx(120 * (EN.COST_PER_INCREMENT["mdr"] + 8 * EN.COST_PER_ASPERITY_INCREMENT["mdr"] * 250))
+    cost = laws.get("mdr").cost
+    assert one == pytest.approx(120 * (cost.per_increment + 8 * cost.per_asperity_increment * 250))
     ds = EN.run_sweep(SW.Sweep(scene=scene.replace(path=_cns(inc=2), n=200), seeds=(1, 2)), scheduler=None)
     assert ds.attrs["engine"].startswith("serial") and "auto: estimated" in ds.attrs["engine"]
 
@@ -576,5 +577,5 @@ def test_every_cycle_gives_each_cycle_in_closed_form():
 
 def test_shipped_path_sweep_file():
     sw = SW.load_sweep(SCENARIOS / "sweep_path_R1.toml")
-    assert sw.shape == (3, 2, 3) and sw.grid["sigma_n"] == (10e6, 100e6, 1e9) and sw.scene.k == 8
+    assert sw.shape == (3, 2, 3) and sw.grid["sigma_n"] == (10e6, 100e6, 1e9) and sw.scene.law_options == {"k": 8}
     assert sw.scenes()[-1].law == "mdr" and sw.scenes()[-1].path.stages[-1].target[0] == pytest.approx(1e9)

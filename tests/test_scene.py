@@ -100,8 +100,8 @@ def test_overrides_with_units_and_defaults():
     scene = scene_from_dict(_scene(parameters={"preset": "R1", "R_m": "40 um", "mu": 0.6, "G": "70 GPa",
                                                "N": "100 /mm2"}), source="t.toml")
     assert scene.params == presets.R1.replace(R_m=40e-6, mu=0.6, G=70e9, N=100e6)
-    assert (scene.n, scene.seed, scene.sampler, scene.law, scene.policy, scene.k) == (100_000, 0, "random", "paper",
-                                                                                      "follow", 16)
+    assert (scene.n, scene.seed, scene.sampler, scene.law, scene.policy, scene.law_options) == (
+        100_000, 0, "random", "paper", "follow", {})
     assert scene.output is None and scene.default_output() == Path("t.nc")
     assert scene.path.name == "t"
 
@@ -128,7 +128,7 @@ BROKEN = {
     "float n": ({"run": {"n": 1.5}}, "n = 1.5 is not an integer (valid range: integer in [1, "),
     "quoted n": ({"run": {"n": "100"}}, "[run] n = '100' is not an integer: write 100 without quotes (valid range"),
     "quoted seed": ({"run": {"seed": "7"}}, "[run] seed = '7' is not an integer: write 7 without quotes"),
-    "boolean k": ({"run": {"k": True}}, "[run] k = True is not an integer"),
+    "boolean k": ({"run": {"k": True}}, "[run] k = True is not valid"),
     "quoted increments": ({"path": {"stages": [{"increments": "3", "Delta_1": 0, "Delta_2": 0, "Delta_3": 0}]}},
                           "stage 1: increments = '3' is not an integer"),
     "quoted snapshot": ({"output": {"snapshots": ["2"]}}, "snapshots step = '2' is not an integer"),

@@ -152,7 +152,7 @@ def test_contact_loss_erases_memory():
     # reloading: identical to a virgin interface loaded the same way
     d2 = np.array([10, 1, 0]) * um
     a = evaluate(pop, d2, law="mdr", state=hist)
-    virgin = ContactState(pop, "mdr", k=hist.k)
+    virgin = ContactState(pop, "mdr", options=hist.options)
     virgin.delta_c = d.copy()
     b = evaluate(pop, d2, law="mdr", state=virgin)
     assert np.array_equal(a.stress, b.stress)

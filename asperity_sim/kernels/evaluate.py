@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import laws
+from ..geometry import POLICIES
 from ..sampling.population import Population
 from .layout import (
     BLOCK,
@@ -52,8 +53,8 @@ from .layout import (
 )
 from .reach import bounds
 from .specialise import kernels
+from .state import ContactState
 
-POLICIES = ("follow", "birth")
 
 
 @dataclass(frozen=True)
@@ -198,8 +199,6 @@ def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspa
                                   or workspace.partial.shape[0] * CHUNK < pop.n):
         raise ValueError(f"workspace = {workspace!r} is not a Workspace for {pop.n} asperities (use Workspace(pop.n))")
     if state is None:
-        from .state import ContactState
-
         state = ContactState(pop, lw, policy)
     elif state.law is not lw or state.pop is not pop:
         raise ValueError(f"state belongs to law {state.law.name!r} on another population; this is law {lw.name!r}")
@@ -278,7 +277,7 @@ def evaluate_steps(pop, deltas, workspace, law="paper") -> np.ndarray:
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
     kernels(lw)["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e,
-                                 lw.constants(pop.params, None), beta, EMPTY, pop.n, scale, workspace.partial, out)
+                                 lw.constants(pop.params, lw.options()), beta, EMPTY, pop.n, scale, workspace.partial, out)
     return out
 
 
@@ -306,6 +305,6 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
     out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
            "state": np.empty(pop.n, dtype=np.int8)}
     kernels(lw)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
-                                  lw.constants(pop.params, None), tb, out["delta_n"], out["theta"], out["force"],
+                                  lw.constants(pop.params, lw.options()), tb, out["delta_n"], out["theta"], out["force"],
                                   out["state"])
     return out

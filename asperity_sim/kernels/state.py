@@ -23,20 +23,16 @@ committed from no history; then, under policy birth, the birth angles.
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import laws
+from ..geometry import POLICIES
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
 from .reach import bounds
 from .specialise import kernels
-
-SPRING_DTYPES = ("float64", "float32")
-K_MAX = 4096
-
 
 @dataclass
 class CommitResult:
@@ -49,25 +45,23 @@ class CommitResult:
     transitions: np.ndarray  # (4, 4) asperity counts from state (row) to state (column)
 
 
-def check_k(k) -> int:
-    if isinstance(k, bool) or not isinstance(k, numbers.Integral) or not 1 <= k <= K_MAX:
-        raise ValueError(f"k = {k!r} is not a valid spring count (valid range: integer in [1, {K_MAX}])")
-    return int(k)
-
-
 class ContactState:
     """The committed per-contact state of a population under one law and policy (module docstring)."""
 
-    def __init__(self, pop, law="paper", policy="follow", k=16, spring_dtype="float64", capacity=1024):
+    def __init__(self, pop, law="paper", policy="follow", options=None, capacity=1024, **law_options):
+        """``options``: the law's options object (:attr:`Law.options`), or ``law_options`` as keywords
+        (:func:`asperity_sim.laws.options_of`: those of other laws ignored, unknown names refused)."""
         self.law = laws.get(law)
-        if policy not in ("follow", "birth"):
-            raise ValueError(f"policy = {policy!r} is not known (valid: follow, birth)")
-        self.k = check_k(k)
-        if spring_dtype not in self.law.spring_dtypes:
-            raise ValueError(f"spring_dtype = {spring_dtype!r} is not valid for law {self.law.name!r} "
-                             f"(valid: {', '.join(self.law.spring_dtypes)})")
-        self.pop, self.policy, self.spring_dtype = pop, policy, spring_dtype
-        self.consts = tuple(float(c) for c in self.law.constants(pop.params, self.k))
+        if policy not in POLICIES:
+            raise ValueError(f"policy = {policy!r} is not known (valid: {', '.join(POLICIES)})")
+        if options is None:
+            options = laws.options_of(self.law, law_options)
+        elif not isinstance(options, self.law.options) or law_options:
+            raise ValueError(f"options = {options!r} is not a {self.law.options.__name__} of law {self.law.name!r} "
+                             "(give either the options object or keywords)")
+        self.options = options
+        self.pop, self.policy = pop, policy
+        self.consts = tuple(float(c) for c in self.law.constants(pop.params, options))
         self.theta_birth = np.full(pop.n, np.nan) if policy == "birth" else None
         self.delta_c = np.zeros(3)
         self.serial = 0  # commits and restores so far: a trial's leftovers are valid for this state only
@@ -79,7 +73,7 @@ class ContactState:
             self.asp = np.full(cap, -1, dtype=np.int32)
             self.dn_c = np.zeros(cap)
             self.code = np.zeros(cap, dtype=np.int8)
-            self.arrays = self.law.history.arrays(cap, self.k, np.dtype(spring_dtype))
+            self.arrays = self.law.history.arrays(cap, options)
             self._counts = np.zeros(0, dtype=np.int64)
             self._partial = np.zeros((0, N_COMMIT))
 

@@ -36,11 +36,13 @@ kernels never see Python objects).  Kernels are free functions compiled with
 captured in a closure, defeats numba's on-disk cache.
 """
 
-from .registry import FULL_SLIP, LAWS, OUT, PARTIAL, STICK, History, Law, get, register
+from .options import Cost, Options, option
+from .registry import FULL_SLIP, LAWS, OUT, PARTIAL, STICK, History, Law, NoOptions, get, option_names, options_of, register
 
 # isort: split
 # the built-in laws register themselves, in this order
 from . import paper  # noqa: E402,I001
 from . import mdr  # noqa: E402,I001
 
-__all__ = ["Law", "History", "LAWS", "register", "get", "OUT", "STICK", "PARTIAL", "FULL_SLIP"]
+__all__ = ["Law", "History", "Options", "NoOptions", "option", "Cost", "LAWS", "register", "get", "options_of",
+           "option_names", "OUT", "STICK", "PARTIAL", "FULL_SLIP"]

@@ -68,7 +68,8 @@ import numpy as np
 from ..errors import CheckpointError
 
 # 3: mdr springs stored (slot, component, spring), one contiguous row per component; predictor points pos_older
-FORMAT = 3
+# 4: the law's options in config['law_options'] (3: config['k'] and config['spring_dtype'])
+FORMAT = 4
 SUFFIX = ".npz"
 MAX_MEMBERS = 100_000  # more arrays than any run writes (snapshots add a handful each)
 _DTYPE_KINDS = "biufU"  # bool, integers, floats, the unicode meta record; never object or structured
@@ -277,7 +278,7 @@ def _read_npy(fh, member_size, where):
 
 
 _CONFIG_TYPES = {"params": dict, "n": int, "seed": (int, type(None)), "sampler": str, "law": str, "policy": str,
-                 "k": (int, type(None)), "path": dict, "settings": dict, "snapshots": (list, str)}
+                 "law_options": dict, "path": dict, "settings": dict, "snapshots": (list, str)}
 
 
 def check_config(config, name="<checkpoint>") -> dict:

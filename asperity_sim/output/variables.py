@@ -61,10 +61,6 @@ DOMAIN_VARIABLES = {  # recorded for path-independent laws only (asperity_sim.so
                       "shear, 4 negative external work over a closed loop; 0 inside)"),
 }
 
-LAW_EVENT_VARIABLES = {  # the per-step event count a history law declares (laws.History.events)
-    "coarsenings": Var(("step",), "i8", "1", "contacts whose springs were coarsened in the increment"),
-}
-
 ASPERITY_VARIABLES = {
     "r": Var(("asperity",), "f8", "m", "asperity height below the highest summit"),
     "R": Var(("asperity",), "f8", "m", "relative radius of curvature"),
@@ -88,7 +84,7 @@ COORDS = {
     "axis_k": Var(("axis_k",), "i4", "1", "displacement component of the tangent"),
 }
 
-ALL_VARIABLES = {**STEP_VARIABLES, **LABEL_VARIABLES, **HISTORY_VARIABLES, **LAW_EVENT_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
+ALL_VARIABLES = {**STEP_VARIABLES, **LABEL_VARIABLES, **HISTORY_VARIABLES, **DOMAIN_VARIABLES, **ASPERITY_VARIABLES, **SNAPSHOT_VARIABLES, **COORDS}
 
 PROPERTY_VARIABLES = {  # derived joint properties (asperity_sim.analysis.properties, asperity_sim.runs.envelope); dims:
     # "point" stands for the grid and replica dimensions of the sweep they come from
@@ -131,6 +127,17 @@ ALL_VARIABLES = {**ALL_VARIABLES, **PROPERTY_VARIABLES}
 
 
 INITIAL_STAGE_NAME = "initial state"  # stage_name of step 0
+
+
+def run_variables(law) -> dict:
+    """The per-step variables of a run of ``law`` (a :class:`~asperity_sim.laws.Law`), in their order.
+
+    Every run: :data:`STEP_VARIABLES`; a history law: :data:`HISTORY_VARIABLES` and the law's own
+    (``law.variables``: its event count); a path-independent law: :data:`DOMAIN_VARIABLES`.
+    """
+    if law.history is not None:
+        return {**STEP_VARIABLES, **HISTORY_VARIABLES, **law.variables}
+    return {**STEP_VARIABLES, **law.variables, **DOMAIN_VARIABLES}
 
 
 def standard_error_links(names) -> dict:

@@ -68,38 +68,34 @@ def _failed(status, wall):
 
 # -- execution -----------------------------------------------------------------
 
-COST_PER_INCREMENT = {"paper": 2.4e-4, "mdr": 7.2e-4}
-"""Python-side cost of one increment [s] (Newton loop, recording): runs on one core whatever the threads."""
-COST_PER_ASPERITY_INCREMENT = {"paper": 1.3e-7, "mdr": 1.0e-7}
-"""Kernel cost on one thread [s]: paper law per asperity and increment; mdr per asperity, increment and spring.
-Kernels run on numba's threads (taken as scaling perfectly).  Both tables were fitted to serial runs of
-the 120-increment constant-normal-shear path on 2 shared cores (2 numba threads): paper 0.045 s at
-n = 2000 and 0.19 s at n = 20 000; mdr (k = 8) 0.33 s at n = 5000 and 1.06 s at n = 20 000."""
 CLUSTER_START = 8.0
 """Start of a 2-worker LocalCluster and its first tasks [s] (worker processes import asperity_sim and load
 the numba cache): 8.7-11.4 s for a whole small sweep on it in benchmarks/sweep_auto.py (2 shared cores)."""
 
 
-def estimate_run_seconds(scene: Scene, threads: int = 1) -> float:
-    """Wall time of one run [s] on ``threads`` numba threads, from the cost tables (a rough model, for choosing)."""
-    increments = sum(s.increments for s in scene.path.stages)
-    from ..laws import get
+def estimate_run_seconds(scene: Scene, threads: int = 1) -> float | None:
+    """Wall time of one run [s] on ``threads`` numba threads from its law's cost model (rough, for choosing);
+    None when the law declares none.  Kernels are taken to scale perfectly over the threads."""
+    from .. import laws
 
-    history = get(scene.law).history is not None  # a history law's cost grows with its springs
-    law = scene.law if scene.law in COST_PER_INCREMENT else ("mdr" if history else "paper")
-    per = COST_PER_ASPERITY_INCREMENT[law] * (scene.k if history else 1)
-    return increments * (COST_PER_INCREMENT[law] + per * scene.n / max(1, threads))
+    cost = laws.get(scene.law).cost
+    if cost is None:
+        return None
+    return cost.seconds(sum(s.increments for s in scene.path.stages), scene.n, scene.options(), threads)
 
 
 def choose_engine(scenes, workers: int = 2, cpus: int | None = None) -> tuple[str, str]:
     """("serial" or "local", reason): the engine estimated faster for these runs.
 
-    Serial: every run on all ``cpus`` numba threads.  Local cluster: :data:`CLUSTER_START`, then
+    Serial: every run on all ``cpus`` numba threads (also when a law declares no cost model).  Local cluster: :data:`CLUSTER_START`, then
     the runs shared by min(workers, cpus, runs) processes with cpus // workers threads each.
     The kernels use every core either way, so a cluster gains only the Python-side work it
     runs side by side (many small runs) and must win back its start.
     """
     cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    unknown = sorted({sc.law for sc in scenes if estimate_run_seconds(sc) is None})
+    if unknown:
+        return "serial", f"auto: serial (law {', '.join(unknown)} declares no cost model to estimate a cluster by)"
     serial = sum(estimate_run_seconds(sc, cpus) for sc in scenes)
     share = max(1, min(workers, cpus, len(scenes)))
     per_worker = max(1, cpus // workers)

@@ -16,7 +16,7 @@ from .. import paths
 from ..params import InterfaceParams
 from ..units import format_quantity
 from ..version import __version__
-from .sweep import PATH_QUANTITIES, RUN_QUANTITIES, Sweep
+from .sweep import PATH_QUANTITIES, Sweep, run_quantities
 
 ALIGNED = ("displacement", "stress", "stress_stderr", "displacement_stderr", "tangent", "n_contact", "n_slip",
            "n_partial", "theta_am", "mean_theta", "external_work", "elastic_energy", "dissipation")
@@ -152,8 +152,9 @@ def assemble(sweep: Sweep, results: list, engine: str = "", wall_time: float = f
 
 
 def _grid_attrs(name):
-    if name in PATH_QUANTITIES or name in RUN_QUANTITIES:
-        unit, long_name = {**PATH_QUANTITIES, **RUN_QUANTITIES}[name]
+    run = run_quantities()
+    if name in PATH_QUANTITIES or name in run:
+        unit, long_name = {**PATH_QUANTITIES, **run}[name]
         return {"units": unit, "long_name": long_name + " (swept)"}
     return {"units": InterfaceParams.units()[name], "long_name": InterfaceParams.long_names()[name] + " (swept)"}
 

@@ -17,9 +17,10 @@ allowed.  The layout (``scenarios/*.toml`` are complete examples)::
     n = 100000                               # sampled asperities
     seed = 0
     sampler = "random"                       # random, sobol
-    law = "paper"                            # paper, mdr
+    law = "paper"                            # a registered law: paper, mdr
     policy = "follow"                        # follow, birth
-    k = 16                                   # tangential springs per contact (law mdr)
+    k = 16                                   # the laws' options (mdr: k, spring_dtype); an option
+                                             # applies to the laws that declare it
     [output]                                 # optional
     file = "run.nc"                          # inside the scene's folder (no absolute path, no '..');
                                              # default <scene>.nc in the current directory
@@ -123,7 +124,9 @@ def read_toml(path) -> dict:
 # -- the scene -------------------------------------------------------------------
 
 _TOP = ("title", "parameters", "run", "output", "path")
-_RUN = {"n": 100_000, "seed": 0, "sampler": "random", "law": "paper", "policy": "follow", "k": 16}
+_RUN = {"n": 100_000, "seed": 0, "sampler": "random", "law": "paper", "policy": "follow"}
+"""The run settings of every scene and their defaults; the laws' options (:func:`asperity_sim.laws.option_names`)
+are the other keys of ``[run]``."""
 _OUTPUT = ("file", "snapshots")
 _PATH = ("name", "stages")
 _COMPONENTS = ("Delta_1", "Delta_2", "Delta_3", "sigma_1", "sigma_2", "sigma_3")
@@ -135,7 +138,8 @@ class Scene:
     """One run: parameters, load path and run settings, as read from a scene file.
 
     ``simulate(**overrides)`` runs it; ``run_kwargs()`` gives the keyword arguments of
-    :func:`asperity_sim.simulate` other than params and path.
+    :func:`asperity_sim.simulate` other than params and path.  ``law_options`` holds the laws'
+    options the scene gives (name -> value, checked); each applies to the laws that declare it.
     """
 
     params: InterfaceParams
@@ -145,7 +149,7 @@ class Scene:
     sampler: str = _RUN["sampler"]
     law: str = _RUN["law"]
     policy: str = _RUN["policy"]
-    k: int = _RUN["k"]
+    law_options: dict = dataclasses.field(default_factory=dict)
     output: Path | None = None
     snapshots: object = None
     title: str = ""
@@ -153,12 +157,23 @@ class Scene:
     source: str = "<scene>"
 
     def replace(self, **changes) -> "Scene":
-        """A copy with some fields changed (``n``, ``seed``, ``params``, ``path``, ...)."""
+        """A copy with some fields changed (``n``, ``seed``, ``params``, ``path``, a law option such as ``k``, ...)."""
+        from .. import laws
+
+        options = {k: changes.pop(k) for k in list(changes) if k in laws.option_names()}
+        if options:
+            changes["law_options"] = {**changes.get("law_options", self.law_options), **options}
         return dataclasses.replace(self, **changes)
+
+    def options(self):
+        """The options of the scene's law (its own options from ``law_options``, defaults for the rest)."""
+        from .. import laws
+
+        return laws.options_of(self.law, self.law_options)
 
     def run_kwargs(self) -> dict:
         return {"n": self.n, "seed": self.seed, "sampler": self.sampler, "law": self.law, "policy": self.policy,
-                "k": self.k, "snapshots": self.snapshots}
+                "snapshots": self.snapshots, **self.law_options}
 
     def simulate(self, **overrides):
         """``asperity_sim.simulate(self.params, self.path, **run_kwargs)``, with keyword overrides."""
@@ -232,18 +247,24 @@ def parameters_from_table(table: dict, where: str = "") -> tuple[InterfaceParams
 
 
 def _run_settings(table: dict, where: str) -> dict:
-    from ..kernels.evaluate import POLICIES
-    from ..laws import LAWS
+    from .. import laws
+    from ..geometry import POLICIES
     from ..sampling.population import N_MAX, SAMPLERS
 
-    check_keys(table, tuple(_RUN), where)
-    out = {**_RUN, **table}
+    option_names = laws.option_names()
+    check_keys(table, (*_RUN, *option_names), where)
+    out = {**_RUN, **{k: v for k, v in table.items() if k in _RUN}}
     out["n"] = check_int(out["n"], f"{where}n", 1, N_MAX)
     out["seed"] = check_int(out["seed"], f"{where}seed", 0)
-    out["k"] = check_int(out["k"], f"{where}k", 1, 4096)
     out["sampler"] = _choice(out["sampler"], f"{where}sampler", SAMPLERS)
-    out["law"] = _choice(out["law"], f"{where}law", tuple(LAWS))
+    out["law"] = _choice(out["law"], f"{where}law", tuple(laws.LAWS))
     out["policy"] = _choice(out["policy"], f"{where}policy", POLICIES)
+    given = {k: v for k, v in table.items() if k in option_names}
+    try:
+        own = laws.options_of(out["law"], given).as_dict()
+    except ValueError as err:
+        raise SceneError(f"{where}{err}") from None
+    out["law_options"] = {k: own.get(k, v) for k, v in given.items()}
     return out
 
 

@@ -73,12 +73,24 @@ PATH_QUANTITIES = {
 }
 """Load-path quantities a sweep grid can vary: name -> (SI unit, long name)."""
 
-RUN_QUANTITIES = {
+RUN_SETTINGS = {
     "law": ("1", "asperity law"),
     "n": ("1", "sampled asperities per run"),
-    "k": ("1", "tangential springs per contact (law mdr)"),
 }
-"""Run settings a sweep grid can vary: name -> (unit, long name)."""
+"""Run settings a sweep grid can vary besides the laws' options: name -> (unit, long name)."""
+
+
+def run_quantities() -> dict:
+    """Run settings a sweep grid can vary: :data:`RUN_SETTINGS` and every registered law's options
+    (name -> (unit, long name))."""
+    from .. import laws
+
+    out = dict(RUN_SETTINGS)
+    for name, declaring in laws.option_names().items():
+        _, doc, _, units = laws.get(declaring[0]).options.describe()[name]
+        out[name] = (units, f"{doc} (law {', '.join(declaring)})")
+    return out
+
 
 def parse_angle(value, name="direction") -> float:
     """An angle [rad] from a plain number (radians) or a string with its unit (``"30 deg"``, ``"0.5 rad"``, pint)."""
@@ -87,7 +99,7 @@ def parse_angle(value, name="direction") -> float:
 
 def _check_value(name, value):
     """One grid value of a load-path or run quantity, checked (SceneError naming the key and the valid range)."""
-    from ..laws import LAWS
+    from .. import laws
     from ..sampling.population import N_MAX
 
     where = f"sweep grid: {name}"
@@ -106,10 +118,15 @@ def _check_value(name, value):
             raise SceneError(f"{where} = {value!r} is out of range (valid range: finite angle)")
         return v
     if name == "law":
-        if value not in LAWS:
-            raise SceneError(f"{where} = {value!r} is not known (valid: {', '.join(LAWS)})")
+        if value not in laws.LAWS:
+            raise SceneError(f"{where} = {value!r} is not known (valid: {', '.join(laws.LAWS)})")
         return value
-    lo, hi = {"cycles": (1, 1000), "n": (1, N_MAX), "k": (1, 4096)}[name]
+    if name in laws.option_names():  # checked by the first law that declares it
+        try:
+            return getattr(laws.get(laws.option_names()[name][0]).options(**{name: value}), name)
+        except ValueError as err:
+            raise SceneError(f"sweep grid: {err}") from None
+    lo, hi = {"cycles": (1, 1000), "n": (1, N_MAX)}[name]
     return check_int(value, where, lo, hi)
 
 
@@ -161,7 +178,7 @@ def apply_path(path: paths.LoadPath, sigma_n=None, amplitude=None, direction=Non
 def _grid_kind(name):
     if name in PATH_QUANTITIES:
         return "path"
-    if name in RUN_QUANTITIES:
+    if name in run_quantities():
         return "run"
     return "param"
 
@@ -172,7 +189,7 @@ class Sweep:
 
     grid : {name: tuple of values}, in the order of the output dimensions; a name is an
         InterfaceParams field [SI], a load-path quantity (:data:`PATH_QUANTITIES`: sigma_n [Pa],
-        amplitude [m], direction [rad], cycles) or a run setting (:data:`RUN_QUANTITIES`: law, n, k)
+        amplitude [m], direction [rad], cycles) or a run setting (:func:`run_quantities`: law, n, a law's option)
     seeds : one seed per replica (default: scene.seed + 0, 1, ..., replicas - 1)
     """
 
@@ -184,12 +201,12 @@ class Sweep:
     source: str = "<sweep>"
 
     def __post_init__(self):
-        units = InterfaceParams.units()
+        units, run = InterfaceParams.units(), run_quantities()
         grid = {}
         for name, values in dict(self.grid).items():
-            if name not in units and name not in PATH_QUANTITIES and name not in RUN_QUANTITIES:
+            if name not in units and name not in PATH_QUANTITIES and name not in run:
                 raise SceneError(f"sweep grid: unknown parameter {name!r} (valid: "
-                                 f"{', '.join([*units, *PATH_QUANTITIES, *RUN_QUANTITIES])})")
+                                 f"{', '.join([*units, *PATH_QUANTITIES, *run])})")
             vals = tuple(float(v) if name in units else _check_value(name, v) for v in values)
             if not vals:
                 raise SceneError(f"sweep grid: {name} has no values")
@@ -279,7 +296,7 @@ def load_sweep(path) -> Sweep:
     if not isinstance(grid_table, dict):
         raise SceneError(f"{where}[sweep] grid must be a table [sweep.grid] of parameter = [values]")
     units = InterfaceParams.units()
-    check_keys(grid_table, (*units, *PATH_QUANTITIES, *RUN_QUANTITIES), f"{where}[sweep.grid] ")
+    check_keys(grid_table, (*units, *PATH_QUANTITIES, *run_quantities()), f"{where}[sweep.grid] ")
     grid = {}
     for name, values in grid_table.items():
         if not isinstance(values, list) or not values:

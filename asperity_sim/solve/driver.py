@@ -27,8 +27,8 @@ import numbers
 import os
 
 from .. import laws
-from ..kernels.evaluate import POLICIES, check_choice
-from ..kernels.state import SPRING_DTYPES
+from ..geometry import POLICIES
+from ..kernels.evaluate import check_choice
 from ..params import InterfaceParams, check_real
 from ..paths import LoadPath
 from ..sampling.population import N_MAX, SAMPLERS, Population
@@ -40,10 +40,10 @@ SEED_MAX = 2**63 - 1  # a seed is stored as a 64-bit integer attribute
 
 
 def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: int | None = 0,
-             sampler: str = "random", law: str = "paper", policy: str = "follow", *, k: int = 16,
-             spring_dtype: str = "float64", snapshots=None, output=None, settings: SolverSettings | None = None,
-             population: Population | None = None, progress=None, max_wall_time: float | None = None,
-             checkpoint=None, checkpoint_every: int | None = None, resume=None):
+             sampler: str = "random", law: str = "paper", policy: str = "follow", *, snapshots=None, output=None,
+             settings: SolverSettings | None = None, population: Population | None = None, progress=None,
+             max_wall_time: float | None = None, checkpoint=None, checkpoint_every: int | None = None, resume=None,
+             **law_options):
     """Run ``path`` on a population sampled from ``params`` and return an ``xarray.Dataset``.
 
     Parameters
@@ -55,8 +55,6 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     law : a registered law (:mod:`asperity_sim.laws`): "paper" (path independent, SPEC §5) or
         "mdr" (history per contact, :mod:`asperity_sim.laws.mdr`)
     policy : "follow" or "birth" (SPEC §3)
-    k : int in [1, 4096], springs a contact has at least at its largest extent (history laws)
-    spring_dtype : "float64" or "float32", storage of the springs (history laws)
     snapshots : None, "stage_ends", or a sequence of step numbers: per-asperity arrays to record
     output : path of a netCDF file to write (atomically), also when the run fails
     settings : SolverSettings
@@ -69,10 +67,13 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         run is interrupted by an exception that is not a :class:`SimulationError`
     checkpoint_every : int >= 1 or None
     resume : path of a checkpoint of this same run (same parameters, path, n, seed, sampler, law,
-        policy, k, settings, snapshots and package version; anything else raises
+        policy, law options, settings, snapshots and package version; anything else raises
         :class:`~asperity_sim.errors.CheckpointError`, a ``ValueError``): the run continues
         from it and its results are bit-identical to an uninterrupted run.  :func:`resume`
         does the same from the file alone.
+    **law_options : the law's options (:attr:`Law.options <asperity_sim.laws.Law>`; ``mdr``: ``k``,
+        springs a contact has at least at its largest extent, and ``spring_dtype``), each checked by
+        the law; an option of another registered law is accepted and ignored, any other name refused
 
     Returns
     -------
@@ -89,13 +90,12 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     if not isinstance(path, LoadPath):
         raise ValueError(f"path = {path!r} is not a LoadPath (see asperity_sim.paths)")
     law = laws.get(law).name
+    options = laws.options_of(law, law_options)
     check_choice("policy", policy, POLICIES)
-    check_choice("spring_dtype", spring_dtype, SPRING_DTYPES)
     check_choice("sampler", sampler, SAMPLERS)
     n = _check_int("n", n, 1, N_MAX)
     if seed is not None:
         seed = _check_int("seed", seed, 0, SEED_MAX)
-    k = _check_int("k (springs per contact)", k, 1, 4096)
     settings = SolverSettings() if settings is None else settings
     if not isinstance(settings, SolverSettings):
         raise ValueError(f"settings = {settings!r} is not a SolverSettings")
@@ -123,10 +123,10 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         if population is not None:
             n, seed, sampler = population.n, population.seed, population.sampler
         run_checkpoint.check_same_run(saved, run_checkpoint.config_of(
-            params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
+            params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, options=options,
             settings=settings, snapshots=snaps))
-    run = Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, k=k, spring_dtype=spring_dtype,
-               snaps=snaps, settings=settings, population=population, saved=saved)
+    run = Run(params, path, n=n, seed=seed, sampler=sampler, law=law, policy=policy, options=options, snaps=snaps,
+              settings=settings, population=population, saved=saved)
     return run.go(output=output, progress=progress, max_wall_time=max_wall_time, checkpoint=checkpoint,
                   checkpoint_every=checkpoint_every)
 

@@ -25,7 +25,7 @@ from ..kernels.evaluate import Workspace, check_delta, evaluate_steps, evaluate_
 from ..kernels.layout import CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, SERIAL_CHUNKS
 from ..kernels.state import ContactState
 from ..output.recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
-from ..output.variables import DOMAIN_VARIABLES, HISTORY_VARIABLES, STEP_VARIABLES, Var
+from ..output.variables import run_variables
 from ..sampling.population import Population
 from ..version import __version__
 from . import run_checkpoint
@@ -60,21 +60,18 @@ def _theta_am(params, closure):
 class Run:
     """The state of one run: population, committed history, recorder, loop position."""
 
-    def __init__(self, params, path, *, n, seed, sampler, law, policy, k, spring_dtype, snaps, settings, population,
-                 saved):
+    def __init__(self, params, path, *, n, seed, sampler, law, policy, options, snaps, settings, population, saved):
         self.params, self.path, self.policy, self.settings = params, path, policy, settings
         self.law = laws.get(law)
         self.snap_steps, self.snap_stage_ends = snaps
         self.resumed_from = None
-        self.variables = {**STEP_VARIABLES, **history_variables(self.law)}
+        self.variables = run_variables(self.law)
         self.domain = DomainMonitor() if self.law.path_independent else None
-        if self.domain is not None:
-            self.variables.update(DOMAIN_VARIABLES)
         restored = None
         if saved is not None:  # every array is checked before any kernel sees it
             restored = run_checkpoint.restore(saved, params=params, n_stages=len(path.stages), law=self.law,
-                                              policy=policy, k=k, spring_dtype=spring_dtype,
-                                              variables=self.variables, population=population)
+                                              policy=policy, options=options, variables=self.variables,
+                                              population=population)
             pop = restored.pop
         elif population is not None:
             pop = population
@@ -82,8 +79,7 @@ class Run:
             pop = Population.sample(params, n, seed=seed, sampler=sampler)
         self.pop = pop
         self.config = run_checkpoint.config_of(params, path, n=pop.n, seed=pop.seed, sampler=pop.sampler, law=law,
-                                               policy=policy, k=k, spring_dtype=spring_dtype, settings=settings,
-                                               snapshots=snaps)
+                                               policy=policy, options=options, settings=settings, snapshots=snaps)
         self.ws = Workspace(pop.n)
         self.length = length_scale(params, path)
         total = sum(s.increments for s in path.stages)
@@ -91,7 +87,7 @@ class Run:
         self.wall_before = 0.0
         self.deadline = math.inf  # set by go() from max_wall_time; evaluations check it
         if restored is None:
-            self.state = ContactState(pop, self.law, policy, k=k, spring_dtype=spring_dtype)
+            self.state = ContactState(pop, self.law, policy, options=options)
             self._fresh()
         else:
             self.state = restored.contact
@@ -107,10 +103,7 @@ class Run:
                                     policy=self.policy, path=path, version=__version__, call=call)
         self.attrs["law_summary"] = law.summary
         self.attrs["law_domain"] = law.domain
-        if law.history is not None:
-            self.attrs["springs_per_contact"] = self.state.k
-            self.attrs["springs_stored_per_contact"] = self.state.n_stored
-            self.attrs["spring_dtype"] = self.state.spring_dtype
+        self.attrs.update(law.run_attributes(self.state.options, getattr(self.state, "arrays", ())))
         _stderr_attrs(self.attrs, pop.n)
         self.attrs["increments_at_resolution"] = 0  # residual above rtol, accepted at the resolution of Delta
         self.attrs["increments_at_resolution_note"] = (
@@ -410,11 +403,3 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
         cutbacks=cutbacks, **extra,
     )
-
-
-def history_variables(law) -> dict:
-    """Per-step outputs of a history law: energies, state transitions and the law's own event count."""
-    if law.history is None:
-        return {}
-    h = law.history
-    return {**HISTORY_VARIABLES, h.events: Var(("step",), "i8", "1", h.events_long_name)}

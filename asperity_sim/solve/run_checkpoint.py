@@ -10,7 +10,7 @@ a file) and :func:`restore` (a file to the state a run continues from), plus :fu
 The layout (format :data:`~asperity_sim.output.checkpoint.FORMAT`; n asperities, T recorded steps):
 
 - meta ``config``: the run's identity (:func:`config_of`): parameters, n, seed, sampler, law,
-  policy, k, spring dtype, load path, solver settings, snapshot request;
+  policy, the law's options, load path, solver settings, snapshot request;
 - meta ``attrs``: the output attributes built so far (provenance, counters); ``population``:
   weight, seed and sampler; ``steps_recorded`` (T) and ``snapshot_steps``;
   ``checkpoint_every`` and ``wall_time_s`` (the run's wall time so far [s]);
@@ -36,6 +36,7 @@ import os
 
 import numpy as np
 
+from .. import laws
 from ..errors import CheckpointError
 from ..kernels.evaluate import Evaluation
 from ..kernels.state import ContactState
@@ -49,7 +50,7 @@ from .solver import SolverSettings
 from .stepping import Position
 
 
-def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snapshots, spring_dtype="float64"):
+def config_of(params, path, *, n, seed, sampler, law, policy, options, settings, snapshots):
     """The run's identity as JSON-able values; a checkpoint continues only the same configuration."""
     snaps = sorted(snapshots[0]) if not snapshots[1] else "stage_ends"
     return {
@@ -59,8 +60,7 @@ def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snaps
         "sampler": sampler,
         "law": law,
         "policy": policy,
-        "k": int(k) if _has_history(law) else None,
-        "spring_dtype": spring_dtype if _has_history(law) else None,
+        "law_options": options.as_dict(),
         "path": {"name": path.name,
                  "stages": [{"control": list(s.control), "target": [float(t) for t in s.target],
                              "increments": s.increments, "adaptive": s.adaptive,
@@ -68,12 +68,6 @@ def config_of(params, path, *, n, seed, sampler, law, policy, k, settings, snaps
         "settings": dataclasses.asdict(settings),
         "snapshots": snaps,
     }
-
-
-def _has_history(law) -> bool:
-    from .. import laws
-
-    return laws.get(law).history is not None
 
 
 class Saved(os.PathLike):
@@ -102,7 +96,7 @@ def read(path) -> Saved:
 def run_arguments(saved: Saved) -> dict:
     """The arguments of :func:`~asperity_sim.simulate` that made the saved run (the inverse of :func:`config_of`).
 
-    Keys: params, path, n, seed, sampler, law, policy, k, spring_dtype, snapshots, settings.
+    Keys: params, path, n, seed, sampler, law, policy, snapshots, settings and the law's options.
     """
     cfg = saved.config
     with ckpt.guard(saved, "holds an invalid configuration"):
@@ -111,9 +105,10 @@ def run_arguments(saved: Saved) -> dict:
                                     s["max_fraction"], s["name"]) for s in cfg["path"]["stages"]),
                         name=cfg["path"]["name"])
         settings = SolverSettings(**cfg["settings"])
+        options = laws.get(cfg["law"]).options(**cfg["law_options"])  # the law's own options only, checked
     return dict(params=params, path=path, n=cfg["n"], seed=cfg["seed"], sampler=cfg["sampler"], law=cfg["law"],
-                policy=cfg["policy"], k=cfg["k"] or 16, spring_dtype=cfg.get("spring_dtype") or "float64",
-                snapshots=cfg["snapshots"] if cfg["snapshots"] != [] else None, settings=settings)
+                policy=cfg["policy"], snapshots=cfg["snapshots"] if cfg["snapshots"] != [] else None, settings=settings,
+                **options.as_dict())
 
 
 def check_same_run(saved: Saved, wanted: dict) -> None:
@@ -228,8 +223,7 @@ class Restored:
     snapshots: list                # [(step, {key: array})]
 
 
-def restore(saved: Saved, *, params, n_stages, law, policy, k, spring_dtype, variables,
-            population=None) -> Restored:
+def restore(saved: Saved, *, params, n_stages, law, policy, options, variables, population=None) -> Restored:
     """The checked state of the run saved in ``saved``, for a run of the same configuration.
 
     ``law`` is the registered law (``laws.get``), ``variables`` the run's output variables
@@ -260,7 +254,7 @@ def restore(saved: Saved, *, params, n_stages, law, policy, k, spring_dtype, var
             require(arrays, "energy_f", shape=(3,), dtype="f8", path=where)
             require(arrays, "energy_events", shape=(1,), dtype="i8", lo=0, path=where)
             require(arrays, "energy_transitions", shape=(4, 4), dtype="i8", lo=0, path=where)
-        contact = ContactState(pop, law, policy, k=k, spring_dtype=spring_dtype)
+        contact = ContactState(pop, law, policy, options=options)
         contact.restore({key[6:]: v for key, v in arrays.items() if key.startswith("state_")})
         ints = arrays["ev_ints"]
         ev = Evaluation(delta=arrays["ev_delta"].copy(), stress=arrays["ev_stress"].copy(),

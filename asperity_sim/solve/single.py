@@ -21,7 +21,7 @@ from ..version import __version__
 COMPONENTS = ["n", "s", "t"]
 
 
-def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dtype: str = "float64") -> xr.Dataset:
+def single_contact(path, R, G, nu, mu, law: str = "mdr", **law_options) -> xr.Dataset:
     """Force and energy of one asperity along a path of local displacements.
 
     Parameters
@@ -31,16 +31,15 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dty
         contact at zero; each row is one increment.
     R : float [m], relative radius;  G : float [Pa];  nu : float [1];  mu : float [1]
     law : a registered law: "mdr" (history, default) or "paper" (path independent, SPEC §5)
-    k : int, springs the contact has at least at its largest extent (history laws)
-    spring_dtype : "float64" or "float32", storage of the springs (history laws)
+    **law_options : the law's options (``mdr``: ``k``, ``spring_dtype``), as in :func:`~asperity_sim.simulate`
 
     Returns
     -------
     xarray.Dataset over ``point`` with ``displacement`` and ``force`` (point, component) [m, N]
-    (components n, s, t), ``tangent`` (point, component, component_k) [N m-1], and for law
-    "mdr" the cumulative ``external_work`` and ``dissipation`` [J], the stored
+    (components n, s, t), ``tangent`` (point, component, component_k) [N m-1], and for a
+    history law the cumulative ``external_work`` and ``dissipation`` [J], the stored
     ``elastic_energy`` [J], the contact ``state`` (0 out, 1 stick, 2 partial slip, 3 full
-    slip) and ``coarsenings``.
+    slip) and the law's event count (``mdr``: ``coarsenings``); the law's options as attributes.
     """
     lw = laws.get(law)
     d = np.asarray(path, dtype=float)
@@ -54,7 +53,7 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dty
                              nu=nu, e=0.0)
     pop = Population.from_arrays(params, [0.0], [R], [0.0], [0.0])
     ws = Workspace(1)
-    state = ContactState(pop, lw, k=k, spring_dtype=spring_dtype)
+    state = ContactState(pop, lw, **law_options)
     state.reference = np.array([dn_max, 0.0, 0.0])  # a fresh contact's springs fit the path's largest overlap
     history = state if state.has_history else None
     m = d.shape[0]
@@ -88,12 +87,12 @@ def single_contact(path, R, G, nu, mu, law: str = "mdr", k: int = 16, spring_dty
         attrs={"law": lw.name, "R": R, "G": params.G, "nu": params.nu, "mu": params.mu,
                "source": f"asperity_sim {__version__}", "Conventions": "CF-1.8"},
     )
+    ds.attrs.update(lw.run_attributes(state.options, getattr(state, "arrays", ())))
     if history is not None:
-        ds.attrs["springs"] = history.k
-        ds.attrs["springs_stored"] = history.n_stored
         ds["external_work"] = ("point", work, {"units": "J", "long_name": "cumulative external work"})
         ds["elastic_energy"] = ("point", stored, {"units": "J", "long_name": "stored elastic energy"})
         ds["dissipation"] = ("point", diss, {"units": "J", "long_name": "cumulative frictional dissipation"})
         ds["state"] = ("point", codes, {"units": "1", "long_name": "contact state (0 out, 1 stick, 2 partial, 3 slip)"})
-        ds["coarsenings"] = ("point", coarse, {"units": "1", "long_name": "spring coarsenings in the increment"})
+        events = lw.variables[lw.history.events]
+        ds[lw.history.events] = ("point", coarse, {"units": events.units, "long_name": events.long_name})
     return ds

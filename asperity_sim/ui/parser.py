@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .. import laws
 from .exits import PROG, UsageError
 
 
@@ -146,7 +147,7 @@ def _add_joint_commands(sub, common):
         q.add_argument("--replicas", type=_positive_int, default=3, help="replicas (seeds) per point (default 3)")
         q.add_argument("--n", type=_positive_int, help="sampled asperities per run (overrides [run] n)")
         q.add_argument("--seed", type=_seed, help="seed of the first replica (overrides [run] seed)")
-        q.add_argument("--law", choices=("paper", "mdr"), help="asperity law (overrides [run] law)")
+        q.add_argument("--law", choices=tuple(laws.LAWS), help="asperity law (overrides [run] law)")
         where = q.add_mutually_exclusive_group()
         where.add_argument("--scheduler", metavar="tcp://host:port", help="address of a running Dask scheduler")
         where.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
