@@ -1,33 +1,22 @@
 """The studies under studies/ run at tiny size as programs, and their bookkeeping is right.
 
 The quick runs start the scripts as programs (``python studies/x.py --quick``).  The tests of
-the mdr study's own bookkeeping (which runs it reads, the cheapest (n, k)) load that one script
-as a module from its file, without touching ``sys.path``: those functions exist only there.
+the mdr study's own bookkeeping (which runs it reads, the cheapest (n, k)) and of the studies'
+timing rule (``studies/timing.py``) import those modules by name through ``support.study``
+(``studies/`` on ``sys.path``, as when the scripts run): those functions exist only there.
 """
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
-
-STUDIES = Path(__file__).resolve().parent.parent / "studies"
-
-
-def load(name):
-    spec = importlib.util.spec_from_file_location(f"studies_{name}", STUDIES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+from support import study
 
 
 @pytest.fixture(scope="module")
 def mdr_convergence():
-    return load("mdr_convergence")
+    return study("mdr_convergence")
 
 
 @pytest.mark.slow
@@ -95,8 +84,7 @@ def test_convergence_study_quick_run(tmp_path, run_script):
 
 def test_timing_repeats_only_short_runs():
     """A short run is timed REPEATS times and its median kept; a long one once; the result is the first run's."""
-    from asperity_sim import timing
-
+    timing = study("timing")
     times = iter([0.05, 0.30, 0.01, 0.50])
     calls = []
 
