@@ -1,9 +1,11 @@
 """Regenerate the paper's three scenarios (Figs. 11, 12, 13) in one run.
 
 Runs scenarios/three_step.py, normal_closure.py and constant_normal_shear.py with their
-defaults (options are passed on to each), writing outputs/*.nc and outputs/*.png.
+defaults (options are passed on to each, so only the options the three share: --n, --seed,
+--sampler, --increments, --outdir, --no-reference, --quick), writing outputs/*.nc and
+outputs/*.png.  tests/test_scenarios.py runs it with --quick --n 2000.
 
-Run:   python scenarios/paper_figures.py [--n 200000] [--seed 2024]
+Run:   python scenarios/paper_figures.py [--n 200000] [--seed 2024] [--quick] [--outdir DIR]
 Expected run time: about 1–2 minutes with a warm numba cache.
 """
 

@@ -98,11 +98,11 @@ from scipy import optimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scenarios"))  # the Fig. 13 path of its scene
 from constant_normal_shear import shear_path  # noqa: E402
+from timing import REPEAT_BELOW, REPEATS, timed  # noqa: E402 - studies/timing.py, beside this script
 
 from asperity_sim import __version__, paths, Population, presets, reference, simulate, SolverSettings
 from asperity_sim.analysis import gridmethod
 from asperity_sim.solve.pruning import simulate_pruned  # noqa: E402
-from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed  # noqa: E402
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 SETTINGS = SolverSettings(rtol=1e-9)

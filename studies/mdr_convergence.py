@@ -70,8 +70,9 @@ import numba
 import numpy as np
 import xarray as xr
 
+from timing import REPEAT_BELOW, REPEATS, timed  # studies/timing.py, beside this script
+
 from asperity_sim import __version__, paths, Population, presets, simulate
-from asperity_sim.timing import REPEAT_BELOW, REPEATS, timed
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 S, D = paths.STRESS, paths.DISPLACEMENT

@@ -15,7 +15,8 @@ Tasks, with their run time on the 2 shared cores of the development machine (war
   ``history_vs_paper``, ``unload_reload_shear`` (about 3 min);
 - ``bem``: ``scenarios/bem_closure.py``, against a boundary-element solution (about 1 min; needs tamaas);
 - ``joint``: ``scenarios/joint_properties.py``, strength envelopes and cyclic properties (about 1 min);
-- ``stability``: the stability matrix (about 1-5 min);
+- ``stability``: ``studies/stability.py``, the stability matrix and hostile inputs (cases in
+  ``stability_cases.py`` and ``stability_hostile.py`` beside it; about 1-5 min);
 - ``convergence`` (about 30 min) and ``mdr_convergence`` (about 15 min): the two error-against-time
   studies, run only when named (``--only``) or with ``--all``.
 

@@ -1,6 +1,7 @@
 """Stability study: does every run over the corners of the input space end well, or stop by name?
 
-What it measures.  Two tables, both defined in :mod:`asperity_sim.stability`:
+What it measures.  Two tables, defined in the study's modules beside this script
+(``stability_cases.py``, ``stability_hostile.py``):
 
 * the matrix: each case changes the R1 (or S1) set of Table 1 towards an edge of the parameter
   space (SPEC §1), alone and combined, and runs the 3-step displacement path, constant normal
@@ -66,26 +67,30 @@ def parse_args(argv=None):
 
 def main(argv=None):
     args = parse_args(argv)
-    from asperity_sim import __version__, stability
+    import stability_cases as cases  # the study's modules, beside this script (its folder is on sys.path)
+    import stability_hostile as hostile_inputs
+    import stability_tables as tables
+
+    from asperity_sim import __version__
     from asperity_sim.output.netcdf import write_netcdf
     from asperity_sim.solve.solver import SolverSettings
 
     inc = args.increments or (3 if args.quick else 6)
-    runs = stability.select_runs(quick=args.quick, big=not args.no_big, only=args.only)
-    hostile = [] if args.no_hostile else stability.select_hostile(quick=args.quick, only=args.only)
+    runs = cases.select_runs(quick=args.quick, big=not args.no_big, only=args.only)
+    hostile = [] if args.no_hostile else hostile_inputs.select_hostile(quick=args.quick, only=args.only)
     if not runs and not hostile:
         print(f"stability.py: error: --only {args.only} selects no case", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    records = stability.run_matrix(runs, args.n, args.seed, inc, args.soft_limit, args.hard_limit,
+    records = cases.run_matrix(runs, args.n, args.seed, inc, args.soft_limit, args.hard_limit,
                                    args.in_process) if runs else []
     t_matrix = time.perf_counter() - t0
-    hostile_records = stability.run_hostile_table(hostile, args.hard_limit, args.in_process) if hostile else []
+    hostile_records = hostile_inputs.run_hostile_table(hostile, args.hard_limit, args.in_process) if hostile else []
     total = time.perf_counter() - t0
     s = SolverSettings()
     cap = s.max_iter + s.max_expansions + 2 * s.max_iter  # scalar search + multi-component solve and its restart
     for r in records:
-        r["verdict"] = stability.verdict(r, cap)
+        r["verdict"] = cases.verdict(r, cap)
     n_pass = sum(r["verdict"] == "pass" for r in records)
     h_pass = sum(r["verdict"] in ("pass", "skipped") for r in hostile_records)
     h_skip = sum(r["verdict"] == "skipped" for r in hostile_records)
@@ -97,14 +102,14 @@ def main(argv=None):
     if records:
         header = (f"Stability matrix: {len(records)} runs, {n_pass} pass, n = {args.n} unless stated, "
                   f"{inc} increments per stage (asperity_sim {__version__}, {t_matrix:.0f} s on this machine)")
-        parts.append(stability.markdown(records, header))
+        parts.append(tables.markdown(records, header))
     if hostile_records:
         header = (f"### Hostile inputs and checkpoints: {len(hostile_records)} cases, {h_pass - h_skip} pass, "
                   f"{h_skip} skipped ({total - t_matrix:.0f} s on this machine)")
-        parts.append(stability.hostile_markdown(hostile_records, header))
-    ds = stability.to_dataset(records, attrs) if records else None
+        parts.append(tables.hostile_markdown(hostile_records, header))
+    ds = tables.to_dataset(records, attrs) if records else None
     if hostile_records:
-        hds = stability.hostile_dataset(hostile_records)
+        hds = tables.hostile_dataset(hostile_records)
         ds = hds.assign_attrs(attrs) if ds is None else ds.merge(hds).assign_attrs(attrs)
     args.outdir.mkdir(parents=True, exist_ok=True)
     nc = write_netcdf(ds, args.outdir / "stability.nc")

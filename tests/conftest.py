@@ -1,5 +1,6 @@
-"""Shared test fixtures.  Tests import only the package; scripts under scenarios/ and studies/
-are run as programs (``run_script``), never imported."""
+"""Shared test fixtures.  Scripts under scenarios/ and studies/ are run as programs (``run_script``);
+a test that needs a study's own code (its cases, its bookkeeping) imports that module by name
+through ``support.study`` (tests/support.py), the one way tests reach studies/."""
 
 import os
 import subprocess

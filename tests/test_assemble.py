@@ -285,7 +285,14 @@ def test_evaluate_rejects_wrong_population_and_workspace():
         evaluate(pop, [1e-6, 0.0, 0.0], workspace=np.zeros((3, 22)))
     with pytest.raises(ValueError, match="Workspace"):
         evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(10))
-    assert evaluate(pop, [1e-6, 0.0, 0.0], workspace=Workspace(pop.n)).n_active >= 0
+    # a workspace of the right size is taken and changes nothing; with no shear, the asperities that may
+    # touch are exactly those whose height r lies below Delta_1 (SPEC §3: delta_n = Delta_1 - r)
+    d1 = 25e-6  # about the mean height of R1: roughly half of the asperities
+    ev = evaluate(pop, [d1, 0.0, 0.0], workspace=Workspace(pop.n))
+    assert 0 < ev.n_active == int(np.count_nonzero(pop.r <= d1)) < pop.n
+    assert ev.n_contact == ev.n_active  # no shear: every asperity below the closure touches
+    plain = evaluate(pop, [d1, 0.0, 0.0])
+    assert plain.n_active == ev.n_active and np.array_equal(plain.stress, ev.stress)
 
 
 @pytest.mark.parametrize("params", [R1, S1], ids=["R1", "S1"])

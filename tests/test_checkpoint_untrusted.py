@@ -28,13 +28,18 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support import forge, study
 
 import asperity_sim as asim
 from asperity_sim import CheckpointError, presets, simulate
 from asperity_sim.output import checkpoint as ckpt
 from asperity_sim.solve import run_checkpoint
 from asperity_sim.paths import LoadPath, Stage
-from asperity_sim.testing import forge, members, meta_bytes, npy_bytes, same_run, write_zip
+
+# the byte-level tools of damaged files, shared with the stability study's hostile inputs (studies/)
+_files = study("damaged_checkpoints")
+members, meta_bytes, npy_bytes, same_run, write_zip = (_files.members, _files.meta_bytes, _files.npy_bytes,
+                                                       _files.same_run, _files.write_zip)
 
 N = 200
 
@@ -365,7 +370,7 @@ def test_some_single_flips_resume_identically_and_most_are_refused(saved, tmp_pa
     assert resume_outcome(path, full) == "error"
 
 
-# forged arrays with a valid zip (asperity_sim.testing.forge): the same member names, rewritten contents ----
+# forged arrays with a valid zip (support.forge): the same member names, rewritten contents ----
 
 CASE_TIMEOUT = 10.0  # s per forged file: an intact run of this size resumes in well under a second
 CHILD = textwrap.dedent("""

@@ -3,6 +3,8 @@
 import importlib.util
 from pathlib import Path
 
+from support import study
+
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 
@@ -75,16 +77,7 @@ RESULTS = DOCS / "results"
 
 
 def _reference_results():
-    spec = importlib.util.spec_from_file_location("reference_results", ROOT / "studies" / "reference_results.py")
-    mod = importlib.util.module_from_spec(spec)
-    import sys
-
-    sys.modules[spec.name] = mod  # its dataclass looks its module up there
-    try:
-        spec.loader.exec_module(mod)
-    finally:
-        del sys.modules[spec.name]
-    return mod
+    return study("reference_results")
 
 
 def test_docs_results_holds_exactly_what_the_regenerating_command_lists():

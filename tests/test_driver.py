@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 import xarray as xr
 from scipy import integrate, special
+from support import single_thread
 
 import asperity_sim
 import asperity_sim.reference as reference
 from asperity_sim import evaluate, paths, Population, presets, simulate, SolverSettings
 from asperity_sim.output.netcdf import params_from_attrs, read_netcdf, write_netcdf
 from asperity_sim.paths import LoadPath, Stage
-from asperity_sim.testing import single_thread
 from asperity_sim.output.variables import ASPERITY_VARIABLES, SNAPSHOT_VARIABLES, STEP_VARIABLES
 
 N_POP = 20_000

@@ -1,7 +1,8 @@
 """Numerical stability on stiff and extreme cases (issue 6, items 1-2).
 
 The fast part of the stability study (``studies/stability.py --quick``, cases in
-:mod:`asperity_sim.stability`) runs here at tiny size: every run either completes or stops with
+``studies/stability_cases.py`` and ``studies/stability_hostile.py``, imported by name through
+``support.study``) runs here at tiny size: every run either completes or stops with
 the expected named exception, and no output is NaN or inf; every hostile input of the quick
 subset (unwritable outputs, bad seeds, damaged and forged checkpoints) is refused by the named
 exception or resumes to the same bits.  Around it, the solver behaviours the matrix relies on, each with a closed
@@ -30,17 +31,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import study
 
 import asperity_sim as asim
-from asperity_sim import paths, Population, presets, simulate, SolverSettings, stability, StressNotReachableError
+from asperity_sim import paths, Population, presets, simulate, SolverSettings, StressNotReachableError
 from asperity_sim.paths import LoadPath, Stage
 from asperity_sim.solve.solver import SolveResult
 
 STUDY = Path(__file__).resolve().parent.parent / "studies" / "stability.py"
+matrix = study("stability_cases")  # the study's modules (studies/), imported by name as the script imports them
+hostile = study("stability_hostile")
 
 
 def all_finite(ds):
-    return not stability.nonfinite_outputs(ds)
+    return not matrix.nonfinite_outputs(ds)
 
 
 # --------------------------------------------------------------------------- the fast matrix
@@ -48,45 +52,45 @@ def all_finite(ds):
 
 @pytest.mark.slow
 def test_fast_stability_matrix_passes():
-    runs = stability.select_runs(quick=True, big=False)
+    runs = matrix.select_runs(quick=True, big=False)
     assert len(runs) >= 150
-    records = stability.run_matrix(runs, n=300, seed=7, inc=2, soft_limit=60.0, hard_limit=120.0, in_process=True,
-                                   log=lambda *a: None)
+    records = matrix.run_matrix(runs, n=300, seed=7, inc=2, soft_limit=60.0, hard_limit=120.0, in_process=True,
+                                log=lambda *a: None)
     cap = SolverSettings().max_iter * 3 + SolverSettings().max_expansions
-    bad = [(r["case"], r["path"], r["law"], stability.verdict(r, cap), r["message"][:200]) for r in records
-           if stability.verdict(r, cap) != "pass"]
+    bad = [(r["case"], r["path"], r["law"], matrix.verdict(r, cap), r["message"][:200]) for r in records
+           if matrix.verdict(r, cap) != "pass"]
     assert not bad, bad
     assert sum(r["outcome"] == "complete" for r in records) >= 0.8 * len(records)
     assert max(r["wall_time_s"] for r in records) < 30.0
 
 
 def test_matrix_covers_the_issue_cases():
-    names = " | ".join(c.name for c in stability.CASES)
+    names = " | ".join(c.name for c in matrix.CASES)
     for word in ("e=0", "theta_m=pi/2", "alpha=-0.999", "alpha=1e4", "R_sigma=0", "R_sigma=R_m", "mu=0", "mu=10",
                  "nu=0", "nu=0.5", "nu=-0.9", "G=1e6", "G=1e13", "N=1", "N=1e12", "n=1", "n=1e7", "sigma_n=1 Pa",
                  "sigma_n at theta_m=pi/2", "zero load", "above strength", "b=-1, c=0.5", "b=2"):
         assert word in names, word
-    kinds = {k for c in stability.CASES for k in c.paths}
+    kinds = {k for c in matrix.CASES for k in c.paths}
     assert {"three_step", "cns", "cyclic", "zero_load", "above_strength"} <= kinds
-    assert any(len(c.changes) >= 2 for c in stability.CASES)  # combined cases
+    assert any(len(c.changes) >= 2 for c in matrix.CASES)  # combined cases
 
 
 def test_theta_m_case_really_reaches_pi_over_2():
-    case = next(c for c in stability.CASES if c.name == "theta_m=pi/2")
-    p = stability.params_of(case)
-    d = stability.closure_scale(p)
+    case = next(c for c in matrix.CASES if c.name == "theta_m=pi/2")
+    p = matrix.params_of(case)
+    d = matrix.closure_scale(p)
     assert p.k_e * (p.r_o + d) / p.R_bounds[1] > 1.0  # cos theta_m clipped for every radius sampled
 
 
 def test_verdict_flags_what_the_issue_forbids():
     ok = {"outcome": "complete", "expected": "complete", "message": "", "nonfinite": "", "iter_max": 5}
-    assert stability.verdict(ok, 100) == "pass"
-    assert stability.verdict({**ok, "nonfinite": "stress"}, 100).startswith("FAIL")
-    assert stability.verdict({**ok, "outcome": "ConvergenceError", "message": "why"}, 100).startswith("FAIL")
-    assert stability.verdict({**ok, "iter_max": 101}, 100).startswith("FAIL")
+    assert matrix.verdict(ok, 100) == "pass"
+    assert matrix.verdict({**ok, "nonfinite": "stress"}, 100).startswith("FAIL")
+    assert matrix.verdict({**ok, "outcome": "ConvergenceError", "message": "why"}, 100).startswith("FAIL")
+    assert matrix.verdict({**ok, "iter_max": 101}, 100).startswith("FAIL")
     named = {**ok, "outcome": "StressNotReachableError", "expected": "StressNotReachableError"}
-    assert stability.verdict({**named, "message": "sigma_2 cannot be reached"}, 100) == "pass"
-    assert stability.verdict(named, 100).startswith("FAIL")  # a failure must say why
+    assert matrix.verdict({**named, "message": "sigma_2 cannot be reached"}, 100) == "pass"
+    assert matrix.verdict(named, 100).startswith("FAIL")  # a failure must say why
 
 
 def run_study(*argv):
@@ -115,8 +119,10 @@ def test_study_says_what_it_measures_takes_and_writes():
 
 @pytest.mark.slow
 def test_study_writes_netcdf_and_markdown(tmp_path):
+    """The study as a program, its runs in worker processes as by default: the spawned worker imports the
+    study's modules (studies/stability_cases.py, stability_hostile.py) from the script's folder."""
     done = run_study("--quick", "--n", "200", "--increments", "2", "--only", "mu=0", "--only", "forged",
-                     "--in-process", "--outdir", str(tmp_path))
+                     "--outdir", str(tmp_path))
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     from asperity_sim.output.netcdf import read_netcdf
 
@@ -134,55 +140,55 @@ def test_study_writes_netcdf_and_markdown(tmp_path):
 
 
 def test_quick_hostile_inputs_end_as_expected(tmp_path):
-    cases = stability.select_hostile(quick=True)
-    assert len(cases) >= 18
-    records = stability.run_hostile_table(cases, hard_limit=120.0, in_process=True, log=lambda *a: None)
+    selected = hostile.select_hostile(quick=True)
+    assert len(selected) >= 18
+    records = hostile.run_hostile_table(selected, hard_limit=120.0, in_process=True, log=lambda *a: None)
     bad = [(r["case"], r["law"], r["outcome"], r["verdict"], r["message"][:300]) for r in records
            if r["verdict"] not in ("pass", "skipped")]
     assert not bad, bad
     skipped = [r for r in records if r["verdict"] == "skipped"]
     assert all(r["case"].startswith("output in a folder without write permission") for r in skipped), skipped
     assert sum(r["outcome"] == "CheckpointError" for r in records) >= 10
-    assert sum(r["outcome"] == stability.SAME for r in records) == 2  # the intact controls of both laws
+    assert sum(r["outcome"] == hostile.SAME for r in records) == 2  # the intact controls of both laws
 
 
 def test_hostile_table_covers_the_issue_cases():
-    names = " | ".join(h.name for h in stability.HOSTILE)
+    names = " | ".join(h.name for h in hostile.HOSTILE)
     for words in ("existing folder", "under a regular file", "without write permission", "equal to the checkpoint",
                   "without --overwrite", "2^63", "seed = -1", "truncated", "flipped bit", "NaN", "unsorted",
                   "out of range", "another law", "another load path", "killed during a checkpoint write"):
         assert words in names, words
-    assert {h.law for h in stability.HOSTILE if "checkpoint" in h.name} == {"paper", "mdr"}
+    assert {h.law for h in hostile.HOSTILE if "checkpoint" in h.name} == {"paper", "mdr"}
 
 
 def test_hostile_verdict_flags_what_the_issue_forbids():
     ok = {"outcome": "CheckpointError", "expected": "CheckpointError", "message": "checkpoint '/x.npz' is damaged"}
-    assert stability.hostile_verdict(ok) == "pass"
-    assert stability.hostile_verdict({**ok, "message": "damaged"}).startswith("FAIL")  # names no file
-    assert stability.hostile_verdict({**ok, "outcome": "KeyError"}).startswith("FAIL")
-    assert stability.hostile_verdict({**ok, "outcome": "complete"}).startswith("FAIL")
-    assert stability.hostile_verdict({**ok, "outcome": "skipped", "message": ""}).startswith("FAIL")  # say why
-    assert stability.hostile_verdict({**ok, "outcome": "skipped", "message": "root"}) == "skipped"
+    assert hostile.hostile_verdict(ok) == "pass"
+    assert hostile.hostile_verdict({**ok, "message": "damaged"}).startswith("FAIL")  # names no file
+    assert hostile.hostile_verdict({**ok, "outcome": "KeyError"}).startswith("FAIL")
+    assert hostile.hostile_verdict({**ok, "outcome": "complete"}).startswith("FAIL")
+    assert hostile.hostile_verdict({**ok, "outcome": "skipped", "message": ""}).startswith("FAIL")  # say why
+    assert hostile.hostile_verdict({**ok, "outcome": "skipped", "message": "root"}) == "skipped"
     same = {"outcome": "same bits", "expected": "same bits", "message": ""}
-    assert stability.hostile_verdict(same) == "pass"
-    assert stability.hostile_verdict({**same, "outcome": "resumed to different bits"}).startswith("FAIL")
+    assert hostile.hostile_verdict(same) == "pass"
+    assert hostile.hostile_verdict({**same, "outcome": "resumed to different bits"}).startswith("FAIL")
 
 
 @pytest.mark.slow
 def test_kill_during_a_checkpoint_write_is_cleaned_up_and_resumes_to_the_same_bits():
     for law in ("paper", "mdr"):
-        case = next(h for h in stability.HOSTILE if h.probe == "killed_write" and h.law == law)
-        rec = stability.run_hostile(case)
-        assert rec["outcome"] == stability.SAME and stability.hostile_verdict(rec) == "pass", rec
+        case = next(h for h in hostile.HOSTILE if h.probe == "killed_write" and h.law == law)
+        rec = hostile.run_hostile(case)
+        assert rec["outcome"] == hostile.SAME and hostile.hostile_verdict(rec) == "pass", rec
         assert ".tmp" in rec["message"] and "removed" in rec["message"]
 
 
 @pytest.mark.slow
 def test_hard_time_limit_kills_a_run_and_the_matrix_goes_on():
-    huge = stability.Case("huge", n=50_000_000, paths=("three_step",), laws=("paper",))
-    small = stability.Case("small", paths=("three_step",), laws=("paper",))
-    records = stability.run_matrix([(huge, "three_step", "paper"), (small, "three_step", "paper")], n=200, seed=1,
-                                   inc=1, soft_limit=60.0, hard_limit=4.0, log=lambda *a: None)
+    huge = matrix.Case("huge", n=50_000_000, paths=("three_step",), laws=("paper",))
+    small = matrix.Case("small", paths=("three_step",), laws=("paper",))
+    records = matrix.run_matrix([(huge, "three_step", "paper"), (small, "three_step", "paper")], n=200, seed=1,
+                                inc=1, soft_limit=60.0, hard_limit=4.0, log=lambda *a: None)
     assert records[0]["outcome"] == "HardTimeLimit" and "killed" in records[0]["message"]
     assert records[1]["outcome"] == "complete"
 
@@ -423,16 +429,16 @@ def test_adaptive_stage_never_shrinks_below_the_smallest_increment(monkeypatch):
 @pytest.mark.parametrize("law", ["paper", "mdr"])
 def test_extreme_parameters_run_or_stop_by_name_without_nan(changes, law):
     p = presets.R1.replace(**changes)
-    d = stability.closure_scale(p)
-    sn = stability.normal_stress(p, stability.Case("x"), d)
+    d = matrix.closure_scale(p)
+    sn = matrix.normal_stress(p, matrix.Case("x"), d)
     for kind in ("three_step", "cyclic"):
-        path = stability.build_path(kind, p, d, sn, 2)
+        path = matrix.build_path(kind, p, d, sn, 2)
         try:
             ds = simulate(p, path, n=300, seed=5, law=law, max_wall_time=30.0)
         except asim.SimulationError as err:
             ds = err.dataset
             assert str(err)
-        assert all_finite(ds), (changes, kind, stability.nonfinite_outputs(ds))
+        assert all_finite(ds), (changes, kind, matrix.nonfinite_outputs(ds))
         assert math.isfinite(float(ds.stress.values.max()))
 
 

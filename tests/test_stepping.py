@@ -14,12 +14,12 @@ import math
 import numpy as np
 import pytest
 import xarray as xr
+from support import single_thread
 
 import asperity_sim as asim
 from asperity_sim import evaluate, paths, Population, presets, simulate, SolverSettings, StressNotReachableError
 from asperity_sim.output.netcdf import read_netcdf
 from asperity_sim.paths import LoadPath, Stage
-from asperity_sim.testing import single_thread
 from asperity_sim.output.variables import STEP_VARIABLES
 
 S, D = paths.STRESS, paths.DISPLACEMENT

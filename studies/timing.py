@@ -1,4 +1,9 @@
-"""Wall-time measurement shared by the studies and benchmarks (``studies/``, ``benchmarks/``).
+"""Wall-time measurement shared by the error-against-time studies (``convergence.py``, ``mdr_convergence.py``).
+
+A helper of the scripts in ``studies/``, not of the package (it moved here from
+``asperity_sim.timing`` in 0.4).  The scripts run as programs, so their folder is on
+``sys.path`` and they ``import timing``; tests import it through ``tests/support.py``'s
+``study("timing")``, which puts ``studies/`` on ``sys.path`` the same way.
 
 Owns one rule: a run shorter than :data:`REPEAT_BELOW` seconds is timed :data:`REPEATS` times
 and its median kept, because one timing of a 5-50 ms run varies about 2x on a shared machine;

@@ -1,27 +1,28 @@
-"""Helpers for tests and studies: damaged and forged checkpoint files, the comparison of two runs,
-and runs on one numba thread.
+"""Damaged and forged checkpoint files, and the comparison of two runs' bits.
 
-Used by ``tests/test_checkpoint_untrusted.py`` and the stability study
-(:mod:`asperity_sim.stability`, ``studies/stability.py``) to make the hostile checkpoints a
-user could meet: truncated files, flipped bits, and arrays rewritten inside a zip whose
-checksums are valid (a forgery that the container's CRC-32 cannot see).  Nothing in the
-simulator imports this module.
+The byte-level tools to make the hostile checkpoints a user could meet: members of a zip held
+in memory, ``.npy`` bytes, a checkpoint rewritten with valid checksums (a forgery the
+container's CRC-32 cannot see), a flipped bit at a known offset; and :func:`same_run`, whether
+a resumed run holds the bits of an uninterrupted one.
+
+Used by the stability study's hostile inputs (``stability_hostile.py``, run by
+``studies/stability.py``) and by ``tests/test_checkpoint_untrusted.py``.  It lives beside the
+study, not in the package (nothing in the simulator needs it; it moved here from
+``asperity_sim.testing`` in 0.4) and not under ``tests/`` (a program under ``studies/`` does not
+depend on the test tree): the study imports it as a sibling module, tests through
+``tests/support.py``'s ``study("damaged_checkpoints")``.  The test-only parts of the old module
+(``single_thread``, ``forge``) are in ``tests/support.py``.
 """
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import zipfile
 
-import numba
 import numpy as np
 
 VOLATILE = {"wall_time_s", "wall_time_increment_loop_s", "history", "date_created"}  # attributes that differ between two runs of the same bits
-
-HOWS = ("nan", "inf", "huge", "negative", "reverse", "shorter", "longer", "flat", "float32", "to_int", "to_float",
-        "scalar", "drop")
 
 
 def same_run(a, b) -> bool:
@@ -33,17 +34,6 @@ def same_run(a, b) -> bool:
                                                                 equal_nan=a[name].dtype.kind == "f"):
             return False
     return all(np.array_equal(np.asarray(a.attrs[k]), np.asarray(b.attrs[k])) for k in set(a.attrs) - VOLATILE)
-
-
-@contextlib.contextmanager
-def single_thread():
-    """Run numba kernels on one thread inside the block (pure speed: no barrier waits on a busy machine)."""
-    old = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(old)
 
 
 def members(data: bytes):
@@ -108,40 +98,3 @@ def member_data_offset(data: bytes, name: str) -> int:
     extra_len = int.from_bytes(data[local + 28:local + 30], "little")
     return local + 30 + name_len + extra_len
 
-
-def forge(arrays, name, how, rng):
-    """A damaged copy of one array (``how``, one of :data:`HOWS`); None: drop it; False: does not apply."""
-    a = arrays[name]
-    if how == "nan" and a.dtype.kind == "f" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = np.nan
-    elif how == "inf" and a.dtype.kind == "f" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = -np.inf
-    elif how == "huge" and a.size:
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = np.iinfo(a.dtype).max if a.dtype.kind in "iu" else 1e300
-    elif how == "negative" and a.size and a.dtype.kind in "if":
-        a = a.copy()
-        a.flat[rng.integers(a.size)] = -7
-    elif how == "reverse" and a.ndim and a.shape[0] > 1:
-        a = a[::-1].copy()
-    elif how == "shorter" and a.ndim and a.shape[0] > 0:
-        a = a[:-1].copy()
-    elif how == "longer" and a.ndim:
-        a = np.concatenate([a, a[:1]])
-    elif how == "flat" and a.ndim > 1:
-        a = a.ravel().copy()
-    elif how == "float32" and a.dtype.kind == "f":
-        a = a.astype(np.float32)
-    elif how == "to_int" and a.dtype.kind in "fb":
-        a = np.nan_to_num(a).astype(np.int64)
-    elif how == "to_float" and a.dtype.kind in "iub":
-        a = a.astype(np.float64)
-    elif how == "scalar":
-        a = np.array(a.ravel()[0] if a.size else 0)
-    elif how == "drop":
-        return None
-    else:
-        return False  # this forgery does not apply to this array
-    return a
