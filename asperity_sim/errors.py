@@ -1,7 +1,10 @@
-"""The errors a run stops with (every one carries the converged part of the run as ``.dataset``).
+"""Every exception and warning type the package raises of its own.
 
-Owns the exception types of :func:`asperity_sim.simulate`: a run stops only with a named
-:class:`SimulationError` that says why, never with NaN.
+A run stops only with a named :class:`SimulationError` that says why (each carries the
+converged part of the run as ``.dataset``), never with NaN; an input that cannot be used is a
+``ValueError`` naming the value and the valid range, or one of its subclasses naming where it
+came from (:class:`CheckpointError`, :class:`SceneError`, :class:`SurfaceError`); a
+path-independent law driven outside its domain warns with :class:`LawDomainWarning`.
 """
 
 from __future__ import annotations

@@ -46,8 +46,20 @@ def local_displacement(d1, d2, d3, cos_th, sin_th, cos_ph, sin_ph):
     return delta_n, delta_s, delta_t
 
 
+@kernel(inline="always")
+def closure_and_slope(r_o, d1):
+    """c = max(0, r_o + Delta_1) [m] and dc/dDelta_1 (SPEC §3): the closure the orientation extent sees.
+
+    The one definition of the closure; :func:`closure` is its numpy twin.
+    """
+    closure = r_o + d1
+    if closure <= 0.0:
+        return 0.0, 0.0
+    return closure, 1.0
+
+
 def closure(params, delta_1):
-    """Closure for the orientation extent, c = max(0, r_o + Delta_1) [m] (SPEC §3)."""
+    """Closure c = max(0, r_o + Delta_1) [m] (SPEC §3), numpy twin of :func:`closure_and_slope`."""
     return np.maximum(0.0, params.r_o + np.asarray(delta_1, dtype=float))
 
 

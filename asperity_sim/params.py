@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from dataclasses import dataclass, field
+
+from .checks import check_real
 
 
 def _f(units: str, long_name: str, **kw):
@@ -32,37 +33,6 @@ class derived(property):
     def of(units: str, long_name: str):
         """Decorator: ``@derived.of("Pa", "contact modulus")`` over the getter."""
         return lambda fget: derived(fget, units, long_name)
-
-
-def check_real(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False, allow_inf=False):
-    """Return ``value`` as a float or raise ``ValueError`` naming it and its valid range."""
-    rng = _range_text(lo, hi, lo_open, hi_open)
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} = {value!r} is not a real number (valid range: {rng})")
-    v = float(value)
-    if math.isnan(v) or (math.isinf(v) and not allow_inf):
-        raise ValueError(f"{name} = {v!r} is not finite (valid range: {rng})")
-    bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
-    bad_hi = hi is not None and (v >= hi if hi_open else v > hi)
-    if bad_lo or bad_hi:
-        raise ValueError(f"{name} = {v!r} is out of range (valid range: {rng})")
-    return v
-
-
-def _range_text(lo, hi, lo_open, hi_open):
-    if lo is None and hi is None:
-        return "any finite real"
-    if hi is None:
-        return f"{_op(lo_open, '>')} {lo:g}"
-    if lo is None:
-        return f"{_op(hi_open, '<')} {hi:g}"
-    left = "(" if lo_open else "["
-    right = ")" if hi_open else "]"
-    return f"{left}{lo:g}, {hi:g}{right}"
-
-
-def _op(is_open, op):
-    return op if is_open else op + "="
 
 
 # (lo, hi, lo_open, hi_open) per field, from SPEC §1.

@@ -17,12 +17,11 @@ its nominal count, plus :data:`BUDGET_SLACK`); the driver stops a stage that exc
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .params import check_real
+from .checks import check_int, check_real
 
 MIN_FRACTION = 1e-6
 """Smallest ``max_fraction`` of a stage: at most 1e6 increments of the largest size."""
@@ -44,12 +43,6 @@ def _as_tuple(value):
         return tuple(value)
     except TypeError:
         return None
-
-
-def _check_int(name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= value <= hi:
-        raise ValueError(f"{name} = {value!r} is not valid (valid range: integer in [{lo}, {hi}])")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -91,7 +84,7 @@ class Stage:
         units = {DISPLACEMENT: "m", STRESS: "Pa"}
         object.__setattr__(self, "target", tuple(
             check_real(f"target[{k}] [{units[c]}]", t) for k, (c, t) in enumerate(zip(mapped, target), 1)))
-        object.__setattr__(self, "increments", _check_int("increments", self.increments, 1, 10**7))
+        object.__setattr__(self, "increments", check_int("increments", self.increments, 1, 10**7))
         if not isinstance(self.adaptive, bool):
             raise ValueError(f"adaptive = {self.adaptive!r} must be True or False")
         try:

@@ -11,7 +11,7 @@ import numpy as np
 from scipy import optimize
 
 from asperity_sim import reference
-from asperity_sim.params import check_real
+from asperity_sim.checks import check_real
 
 OUTPUTS = Path(__file__).resolve().parent.parent / "outputs"
 

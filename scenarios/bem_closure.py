@@ -41,7 +41,7 @@ from scipy import optimize
 from asperity_sim import evaluate, presets
 from asperity_sim.geometry import theta_m_array
 from asperity_sim.output.netcdf import read_netcdf, write_netcdf
-from asperity_sim.params import check_real
+from asperity_sim.checks import check_real
 from asperity_sim.sampling.population import Population
 from asperity_sim.analysis.surfaces.bem import bem_contact
 

@@ -386,12 +386,14 @@ def test_evaluate_steps_gives_the_bits_of_evaluate_at_each_row():
     rng = np.random.default_rng(1)
     deltas = np.concatenate([[[0.0, 0.0, 0.0], [-5 * um, 1 * um, 0.0], [12 * um, 0.0, 0.0]],
                              rng.uniform([0.0, -20 * um, -20 * um], [25 * um, 20 * um, 20 * um], (30, 3))])
-    out = evaluate_steps(pop, deltas, Workspace(pop.n))
-    assert out.shape[0] == len(deltas)
-    for d, row in zip(deltas, out):
-        got, expected = evaluation_from(d, row), evaluate(pop, d)
+    steps = evaluate_steps(pop, deltas, Workspace(pop.n))
+    assert steps.stress.shape == (len(deltas), 3) and steps.tangent.shape == (len(deltas), 3, 3)
+    for i, d in enumerate(deltas):
+        got, expected = steps.evaluation(i), evaluate(pop, d)
         for name in ("stress", "stderr", "covariance", "tangent"):
             np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
         for name in ("n_contact", "n_slip", "n_partial", "mean_theta", "n_active"):
             assert getattr(got, name) == getattr(expected, name), name
-    assert evaluation_from(deltas[0], out[0]).n_contact == 0 < evaluation_from(deltas[2], out[2]).n_contact
+        np.testing.assert_array_equal(steps.stress[i], expected.stress)
+        assert steps.n_contact[i] == expected.n_contact and steps.finite[i]
+    assert steps.evaluation(0).n_contact == 0 < steps.evaluation(2).n_contact

@@ -95,7 +95,7 @@ def test_presets_print_every_parameter_with_its_unit(capsys):
     only = capsys.readouterr().out
     assert "S2: smooth marble interface" in only and "R1:" not in only and "  nu       = 0.152 [-]" in only
     assert cli.main(["presets", "R7"]) == exits.EXIT_INPUT
-    assert "preset 'R7' is not known (valid: R1, S1, R2, S2)" in _one_error_line(capsys.readouterr().err, 1)
+    assert "preset = 'R7' is not known (valid: R1, S1, R2, S2)" in _one_error_line(capsys.readouterr().err, 1)
 
 
 class _Terminal(io.StringIO):

@@ -128,7 +128,7 @@ BROKEN = {
     "float n": ({"run": {"n": 1.5}}, "n = 1.5 is not an integer (valid range: integer in [1, "),
     "quoted n": ({"run": {"n": "100"}}, "[run] n = '100' is not an integer: write 100 without quotes (valid range"),
     "quoted seed": ({"run": {"seed": "7"}}, "[run] seed = '7' is not an integer: write 7 without quotes"),
-    "boolean k": ({"run": {"k": True}}, "[run] k = True is not valid"),
+    "boolean k": ({"run": {"k": True}}, "[run] k = True is not an integer (valid range: integer in [1, 4096])"),
     "quoted increments": ({"path": {"stages": [{"increments": "3", "Delta_1": 0, "Delta_2": 0, "Delta_3": 0}]}},
                           "stage 1: increments = '3' is not an integer"),
     "quoted snapshot": ({"output": {"snapshots": ["2"]}}, "snapshots step = '2' is not an integer"),

@@ -49,6 +49,7 @@ import numpy as np
 import xarray as xr
 from scipy import special
 
+from .. import geometry
 from ..geometry import theta_m_and_slope
 from ..jit import kernel
 from ..kernels.layout import chunk_stride
@@ -257,7 +258,7 @@ class _Evaluator:
     def __call__(self, delta):
         p, g = self.p, self.rule
         d = np.asarray(delta, dtype=float)
-        closure = max(0.0, p.r_o + d[0])
+        closure = float(geometry.closure(p, d[0]))
         _grid_kernel(float(d[0]), float(d[1]), float(d[2]), closure, p.k_e, p.E_star, p.lam, p.mu,
                      p.b, p.c, p.d, g.r, g.w_r, g.R, g.w_R, g.t_u, g.w_u, g.phi, g.w_phi,
                      self.rows, self.visited)

@@ -15,9 +15,9 @@ import math
 import numba
 import numpy as np
 
-from ..geometry import local_displacement
+from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
-from .contact import asperity_theta, closure_and_slope, committed_overlap, contact_angle, gather_slots, slot_geometry
+from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
     BLOCK,
     C_DISS,
@@ -223,7 +223,7 @@ def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_bir
     ``follow`` angle if it touches there.  Asperities beyond n_active are out of contact.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure = max(r_o + d1, 0.0)
+    closure, _ = closure_and_slope(r_o, d1)
     for j in numba.prange(theta_birth.size):
         if j >= n_active:
             theta_birth[j] = np.nan

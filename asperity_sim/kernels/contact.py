@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from ..geometry import local_displacement, theta_m_and_slope
+from ..geometry import closure_and_slope, local_displacement, theta_m_and_slope
 from ..jit import kernel
 from ..vectormath import acos_unit, fsqrt, sin_cos_quarter
 from .layout import (
@@ -133,15 +133,6 @@ def contact_angle(j, r, u, inv_R, cp, sp, d1, d2, d3, closure, k_e, dc, theta_bi
         if math.cos(tb) * (d1 - r[j]) + math.sin(tb) * (cp * d2 + sp * d3) > 0.0:
             return tb, 0.0
     return th, th1
-
-
-@kernel(inline="always")
-def closure_and_slope(r_o, d1):
-    """c = max(0, r_o + Delta_1) and dc/dDelta_1 (SPEC §3)."""
-    closure = r_o + d1
-    if closure <= 0.0:
-        return 0.0, 0.0
-    return closure, 1.0
 
 
 @kernel(inline="always", error_model="numpy")

@@ -20,12 +20,12 @@ or loaded from cache.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import laws
+from ..checks import check_choice, check_delta
 from ..geometry import POLICIES
 from ..sampling.population import Population
 from .layout import (
@@ -56,7 +56,6 @@ from .specialise import kernels
 from .state import ContactState
 
 
-
 @dataclass(frozen=True)
 class Evaluation:
     """Interface response at one displacement (SPEC §6).
@@ -78,20 +77,6 @@ class Evaluation:
     n_partial: int
     mean_theta: float
     n_active: int
-
-
-def check_delta(delta) -> np.ndarray:
-    d = np.asarray(delta, dtype=float)
-    if d.shape != (3,):
-        raise ValueError(f"delta = {delta!r} must have shape (3,) [m], got shape {d.shape}")
-    if not all(map(math.isfinite, d.tolist())):
-        raise ValueError(f"delta = {d!r} [m] is not finite (valid range: finite reals)")
-    return d
-
-
-def check_choice(name, value, valid):
-    if value not in valid:
-        raise ValueError(f"{name} = {value!r} is not known (valid: {', '.join(valid)})")
 
 
 class Workspace:
@@ -224,7 +209,7 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
     kern = kernels(law)
     if law.path_independent:
         # a population that fits the serial kernel: it finds its own bounds
-        serial = pop.n <= SERIAL_CHUNKS * CHUNK
+        serial = serial_fits(pop)
         if not serial:
             n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
             serial = n_active <= SERIAL_CHUNKS * CHUNK
@@ -265,20 +250,74 @@ def _row(d):
     return np.ascontiguousarray(d).reshape(1, 3)
 
 
-def evaluate_steps(pop, deltas, workspace, law="paper") -> np.ndarray:
-    """Flat results (m, N_OUT) of a path-independent law under policy follow at each row of ``deltas`` (m, 3) [m].
+def serial_fits(pop) -> bool:
+    """True when the whole population fits the serial kernel of a path-independent law (small populations)."""
+    return pop.n <= SERIAL_CHUNKS * CHUNK
+
+
+@dataclass(frozen=True)
+class Steps:
+    """Responses at a batch of displacements (:func:`evaluate_steps`): one row per displacement.
+
+    delta (m, 3) [m]; stress, stderr (m, 3) [Pa]; tangent (m, 3, 3) [Pa/m]; n_contact, n_slip,
+    n_partial (m,) counts (floats); mean_theta (m,) [rad]; finite (m,): stress, tangent and
+    covariance finite (what the solver checks of an evaluation).
+    """
+
+    delta: np.ndarray
+    rows: np.ndarray  # (m, N_OUT): the flat results of finish, in the layout of kernels.layout
+
+    @property
+    def stress(self):
+        return self.rows[:, O_STRESS:O_STRESS + 3]
+
+    @property
+    def stderr(self):
+        return self.rows[:, O_SE:O_SE + 3]
+
+    @property
+    def tangent(self):
+        return self.rows[:, O_TANGENT:O_TANGENT + 9].reshape(-1, 3, 3)
+
+    @property
+    def n_contact(self):
+        return self.rows[:, O_NC]
+
+    @property
+    def n_slip(self):
+        return self.rows[:, O_NS]
+
+    @property
+    def n_partial(self):
+        return self.rows[:, O_NP]
+
+    @property
+    def mean_theta(self):
+        return self.rows[:, O_TH]
+
+    @property
+    def finite(self):
+        return np.isfinite(self.rows[:, :O_SE]).all(axis=1)  # stress, tangent, covariance
+
+    def evaluation(self, i) -> Evaluation:
+        """The :class:`Evaluation` of row ``i``."""
+        return evaluation_from(self.delta[i], self.rows[i])
+
+
+def evaluate_steps(pop, deltas, workspace, law="paper") -> Steps:
+    """The responses of a path-independent law under policy follow at each row of ``deltas`` (m, 3) [m].
 
     One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
-    meant for small populations, where the per-call overhead of :func:`evaluate` exceeds the
-    kernel time.  Read a row with :func:`evaluation_from`.  ``deltas`` finite and
-    C-contiguous, ``workspace`` a :class:`Workspace` for ``pop``.
+    meant for small populations (:func:`serial_fits`), where the per-call overhead of
+    :func:`evaluate` exceeds the kernel time.  ``deltas`` finite and C-contiguous,
+    ``workspace`` a :class:`Workspace` for ``pop``.
     """
     lw = laws.get(law)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
     kernels(lw)["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e,
                                  lw.constants(pop.params, lw.options()), beta, EMPTY, pop.n, scale, workspace.partial, out)
-    return out
+    return Steps(deltas, out)
 
 
 def evaluation_from(d, out) -> Evaluation:

@@ -15,13 +15,12 @@ import math
 import numba
 import numpy as np
 
-from ..geometry import local_displacement
+from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
 from .contact import (
     accumulate,
     add_values,
     asperity_theta,
-    closure_and_slope,
     committed_overlap,
     contact_angle,
     gather_slots,

@@ -15,12 +15,11 @@ import math
 import numba
 import numpy as np
 
-from ..geometry import local_displacement
+from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
 from .contact import (
     accumulate,
     add_values,
-    closure_and_slope,
     contact_angle,
     follow_angle,
     follow_slope,
@@ -189,7 +188,7 @@ def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_bir
                    force_out, state_out):
     """Per-asperity overlap, orientation, global force and state code of a path-independent law."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
-    closure = max(r_o + d1, 0.0)
+    closure, _ = closure_and_slope(r_o, d1)
     has_birth = theta_birth.size > 0
     for j in numba.prange(r.size):
         cp, sp = cos_phi[j], sin_phi[j]

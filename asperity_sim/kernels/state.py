@@ -28,11 +28,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import laws
+from ..checks import check_choice
 from ..geometry import POLICIES
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
 from .reach import bounds
 from .specialise import kernels
+
 
 @dataclass
 class CommitResult:
@@ -52,8 +54,7 @@ class ContactState:
         """``options``: the law's options object (:attr:`Law.options`), or ``law_options`` as keywords
         (:func:`asperity_sim.laws.options_of`: those of other laws ignored, unknown names refused)."""
         self.law = laws.get(law)
-        if policy not in POLICIES:
-            raise ValueError(f"policy = {policy!r} is not known (valid: {', '.join(POLICIES)})")
+        check_choice("policy", policy, POLICIES)
         if options is None:
             options = laws.options_of(self.law, law_options)
         elif not isinstance(options, self.law.options) or law_options:

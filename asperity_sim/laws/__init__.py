@@ -6,8 +6,12 @@ displacement: the contact force (f_n, f_s, f_t) and its exact Jacobian.  Everyth
 standard errors, the per-contact bookkeeping) is generic and lives in
 :mod:`asperity_sim.kernels.evaluate` (reductions) and :mod:`asperity_sim.kernels.state` (committed state).
 
-A law is one module that defines numba kernels and a :class:`Law` object, and calls
-:func:`register`.  Two kinds:
+A law is one module that defines its kernels and a :class:`Law` object, and calls
+:func:`register`; the Law declares, besides its kernels, its options (a frozen dataclass of
+:func:`option` fields, :class:`Options`), its cost model (:class:`Cost`, for sweeps), its own
+per-step output variables and its run attributes.  The rest of the package (``simulate``,
+scene files, checkpoints, sweeps, the command line, the documentation) takes all of these from
+the registry.  Two kinds:
 
 - **path independent** (``history=None``): ``local(dn, ds, dt, R, consts)`` with the total
   local displacements returns ``(f_n, f_s, f_t, J00, J01, J02, J10, J11, J12, J20, J21, J22,
@@ -29,15 +33,29 @@ A law is one module that defines numba kernels and a :class:`Law` object, and ca
   ``live[i]``: a law may then arrange the work over a block (vectorised per-contact scalars,
   say); without them the generic reductions call ``trial`` and ``commit`` contact by contact.
 
-``consts`` is the tuple of floats ``law.constants(params, k)`` (built once per run, so
+``consts`` is the tuple of floats ``law.constants(params, options)`` (built once per run, so
 kernels never see Python objects).  Kernels are free functions compiled with
-``@kernel(inline="always")`` (:mod:`asperity_sim.jit`); the generic reductions are compiled once per law
-(:mod:`asperity_sim.kernels.specialise`), because a function passed to a numba kernel as an argument, or
-captured in a closure, defeats numba's on-disk cache.
+``@kernel(inline="always")`` (:mod:`asperity_sim.jit`; ``numba.njit(cache=True, inline="always")``
+in a module outside the package); the generic reductions are compiled once per law
+(:mod:`asperity_sim.kernels.specialise`), because a function passed to a numba kernel as an
+argument, or captured in a closure, defeats numba's on-disk cache.
 """
 
 from .options import Cost, Options, option
-from .registry import FULL_SLIP, LAWS, OUT, PARTIAL, STICK, History, Law, NoOptions, get, option_names, options_of, register
+from .registry import (
+           FULL_SLIP,
+           LAWS,
+           OUT,
+           PARTIAL,
+           STICK,
+           History,
+           Law,
+           NoOptions,
+           get,
+           option_names,
+           options_of,
+           register,
+)
 
 # isort: split
 # the built-in laws register themselves, in this order

@@ -14,6 +14,8 @@ import dataclasses
 import numbers
 from dataclasses import dataclass
 
+from ..checks import check_choice, check_int
+
 __all__ = ["Options", "option", "Cost"]
 
 
@@ -61,13 +63,9 @@ class Options:
 def _checked(f, value):
     valid = f.metadata["valid"]
     if isinstance(valid, tuple) and len(valid) == 2 and all(isinstance(v, numbers.Integral) for v in valid):
-        lo, hi = valid
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= value <= hi:
-            raise ValueError(f"{f.name} = {value!r} is not valid ({f.metadata['doc']}; valid range: integer in "
-                             f"[{lo}, {hi}])")
-        return int(value)
-    if valid is not None and value not in valid:
-        raise ValueError(f"{f.name} = {value!r} is not valid ({f.metadata['doc']}; valid: {', '.join(map(str, valid))})")
+        return check_int(f.name, value, *valid)
+    if valid is not None:
+        return check_choice(f.name, value, valid)
     return value
 
 

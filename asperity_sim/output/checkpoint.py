@@ -1,12 +1,12 @@
 """Checkpoints of a running :func:`~asperity_sim.simulate`: the full state, written atomically.
 
-Owns the checkpoint file format: the container, its atomic write, its untrusted reading and
+Owns the checkpoint file format: the container, its untrusted reading and
 the checks of what is read (:func:`require`, :func:`guard`).  Which arrays hold which part of
 a run, and how a run is saved to them and restored from them, is
 :mod:`asperity_sim.solve.run_checkpoint`'s.  A checkpoint holds everything the loop needs to continue
 as if it had never stopped, so a resumed run is bit-identical to an uninterrupted one:
 
-- the run's configuration (parameters, n, seed, sampler, law, policy, springs k, load path,
+- the run's configuration (parameters, n, seed, sampler, law, policy, the law's options, load path,
   solver settings, snapshot request) and the package version and checkpoint format;
 - the population arrays (r, R, u, cos phi, sin phi), not only its seed: a population drawn
   with ``seed=None`` or passed in by the caller cannot be drawn again;
@@ -23,9 +23,9 @@ unrelated shapes and dtypes (int32 slot map, (slots, k, 2) springs, int8 states,
 snapshot dictionaries) that need no named dimensions, must round-trip bit for bit, and are
 read back only by this module; ``.npy`` stores them exactly, needs no extra dependency and
 reads without pickle (``allow_pickle=False``), and the zip's CRC-32 per member detects a
-damaged file.  The file is written to a temporary name in the same folder, flushed to disk
-(fsync) and renamed over the final name, so a crash or SIGKILL never leaves a truncated
-checkpoint behind under the final name.
+damaged file.  It is written through :func:`asperity_sim.output.atomic.write_atomically`
+(temporary name in the same folder, fsync, rename), so a crash or SIGKILL never leaves a
+truncated checkpoint behind under the final name.
 
 A checkpoint is read back only by the same package version (``asperity_sim.__version__``,
 exactly: a patch release may change a result in its last bit, and a resumed run promises the
@@ -46,10 +46,6 @@ business: before any kernel sees an array it calls :func:`require` (dtype, shape
 bounds, sorted), and wraps its own mapping in :func:`guard`, which turns any ``KeyError``,
 ``IndexError``, ``TypeError``, ``ValueError`` (e.g. from ``Population.__post_init__``) into a
 :class:`CheckpointError`.
-
-Temporary files are named ``.<name>.<pid>.<random>.tmp`` next to the checkpoint.  A failed
-write removes its own; a killed process cannot, so :func:`save` first removes the temporaries
-of the same checkpoint left by processes that no longer exist (or by this one).
 """
 
 from __future__ import annotations
@@ -58,14 +54,13 @@ import contextlib
 import json
 import numbers
 import os
-import re
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import CheckpointError
+from .atomic import write_atomically
 
 # 3: mdr springs stored (slot, component, spring), one contiguous row per component; predictor points pos_older
 # 4: the law's options in config['law_options'] (3: config['k'] and config['spring_dtype'])
@@ -90,79 +85,19 @@ def differences(saved: dict, wanted: dict, prefix="") -> list[str]:
 
 def save(path, *, meta: dict, arrays: dict) -> Path:
     """Write ``arrays`` (name -> ndarray) and ``meta`` (JSON-able) to ``path`` atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"format": FORMAT, **meta}
     payload = {"meta": np.array(json.dumps(doc, allow_nan=True))}
     for name, a in arrays.items():
         if name == "meta":
             raise ValueError("'meta' is reserved in a checkpoint")
         payload[name] = np.ascontiguousarray(a)
-    remove_stale_temporaries(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
             np.savez(fh, **payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(path.parent)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
-
-def remove_stale_temporaries(path) -> list[Path]:
-    """Remove ``.<name>.<pid>.<random>.tmp`` siblings of ``path`` whose writer is gone; return them.
-
-    A temporary of a process that still runs (another writer of the same checkpoint) is left
-    alone; one of this process can only be left over from an interrupted write.
-    """
-    path = Path(path)
-    pattern = re.compile(re.escape(f".{path.name}.") + r"(\d+)\.[^/]*\.tmp")
-    removed = []
-    try:
-        siblings = list(path.parent.iterdir())
-    except OSError:
-        return removed
-    for p in siblings:
-        m = pattern.fullmatch(p.name)
-        if m is None:
-            continue
-        pid = int(m.group(1))
-        if pid != os.getpid() and _alive(pid):
-            continue
-        try:
-            p.unlink()
-            removed.append(p)
-        except OSError:
-            pass
-    return removed
-
-
-def _alive(pid) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OverflowError, ValueError):
-        return True  # another user's process, or an absurd pid: keep the file
-    return True
-
-
-def _fsync_dir(folder):
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    write_atomically(path, write)
+    return Path(path)
 
 
 class Arrays(dict):

@@ -1,20 +1,18 @@
-"""Writing and reading run files (netCDF4).  With the recorder, the only module that writes files.
+"""Run files: datasets written to netCDF4 (compressed, atomically) and read back.
 
-Files are written atomically: to a temporary file in the target folder, then renamed,
-so a crash never leaves a truncated file under the final name.  The temporary is named
-``.<name>.<pid>.<random>.tmp``; a failed write removes it, and the next write of the same file
-removes those of killed processes (:func:`asperity_sim.output.checkpoint.remove_stale_temporaries`).
+Owns the netCDF form of a run's dataset: the engine and compression, the CF links between a
+value and its standard error (``ancillary_variables``), and the parameters read back from the
+attributes.  The file is written through :func:`asperity_sim.output.atomic.write_atomically`.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import xarray as xr
 
 from ..params import InterfaceParams
+from .atomic import write_atomically
 
 
 def write_netcdf(ds: xr.Dataset, path) -> Path:
@@ -26,25 +24,8 @@ def write_netcdf(ds: xr.Dataset, path) -> Path:
     from .recorder import link_standard_errors
 
     ds = link_standard_errors(ds.copy(deep=False))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
-    from .checkpoint import remove_stale_temporaries
-
-    remove_stale_temporaries(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
-    try:
-        ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomically(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
 
 
 def read_netcdf(path) -> xr.Dataset:

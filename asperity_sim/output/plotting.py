@@ -1,7 +1,8 @@
 """Figures drawn from run files alone (netCDF written by :func:`asperity_sim.simulate`).
 
-Owns plotting: every function takes datasets (as read back from disk) and returns a
-matplotlib Figure.  Conventions of every figure:
+Owns the figures of runs and their conventions (figures of sweeps and envelopes follow them,
+:mod:`asperity_sim.runs.figures`): every function takes datasets (as read back from disk)
+and returns a matplotlib Figure, and :func:`save_figure` writes one atomically.  Conventions of every figure:
 
 - Monte Carlo standard errors are drawn as shaded bands of ±2 standard errors (``BAND``), and
   every legend of an axes with bands says so (``BAND_LABEL``);
@@ -15,6 +16,8 @@ matplotlib Figure.  Conventions of every figure:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -22,12 +25,20 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from .atomic import write_atomically  # noqa: E402
+
 MPA, UM = 1e-6, 1e6
 BAND = 2.0  # half-width of the error bands, in standard errors
 BAND_LABEL = f"shaded: ±{BAND:g} SE (Monte Carlo standard error)"
 COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green"}
 MARK = {"marker": "o", "ms": 2.5}  # every recorded step is a marker
 GUIDE = {"color": "0.6", "lw": 0.8, "gid": "guide"}  # lines that are not computed points
+
+
+def save_figure(fig, path, **kw) -> Path:
+    """Write ``fig`` to ``path`` (format from its suffix) atomically (:mod:`asperity_sim.output.atomic`)."""
+    path = Path(path)
+    return write_atomically(path, lambda tmp: fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", **kw))
 
 
 def path_length(ds) -> np.ndarray:

@@ -74,6 +74,7 @@ import numbers
 import numpy as np
 from scipy import special
 
+from .. import geometry
 from ..params import InterfaceParams
 from .integrand import stress_kernel
 from .rules import check_params, gauss_jacobi01, gauss_legendre01, radius_rule
@@ -151,7 +152,7 @@ def stress(params: InterfaceParams, delta, *, level: str = "default", refine: fl
     d = _check_delta(delta)
     n_R, n_u, n_phi, n_r, chunk, phi_chunk = _settings(level, refine)
     p = params
-    closure = max(0.0, p.r_o + d[0])
+    closure = float(geometry.closure(p, d[0]))
     shear = math.hypot(d[1], d[2])
     b, c, dd = p.b, p.c, p.d
     if symmetry and shear == 0.0:

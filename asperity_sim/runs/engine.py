@@ -15,7 +15,7 @@ import time
 
 import xarray as xr
 
-from .ensemble import align_run, assemble
+from .ensemble import align_run, sweep_dataset
 from .scene import Scene
 from .sweep import Sweep
 
@@ -144,7 +144,7 @@ def run_sweep(sweep: Sweep, scheduler=None, workers: int = 2, progress=None, not
     scenes = sweep.scenes()
     t0 = time.perf_counter()
     results, engine = _execute(scenes, scheduler, workers, progress, note, threads)
-    return assemble(sweep, results, engine=engine, wall_time=time.perf_counter() - t0)
+    return sweep_dataset(sweep, results, engine=engine, wall_time=time.perf_counter() - t0)
 
 
 def _execute(scenes, scheduler, workers, progress, note, threads=None):

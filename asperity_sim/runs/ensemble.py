@@ -95,7 +95,7 @@ def align_run(ds: xr.Dataset, path: paths.LoadPath) -> tuple[dict, bool]:
 
 # -- the gathered dataset ------------------------------------------------------------
 
-def assemble(sweep: Sweep, results: list, engine: str = "", wall_time: float = float("nan")) -> xr.Dataset:
+def sweep_dataset(sweep: Sweep, results: list, engine: str = "", wall_time: float = float("nan")) -> xr.Dataset:
     """One Dataset from the run results (C order of (grid..., replica)), with ensemble statistics."""
     shape, dims = sweep.shape, sweep.dims
     path = sweep.longest_path()

@@ -32,7 +32,9 @@ import xarray as xr
 
 from .. import paths
 from ..analysis import properties as P
+from ..checks import check_choice
 from ..errors import SceneError
+from ..output.atomic import write_atomically
 from ..output.variables import PROPERTY_VARIABLES
 from ..units import parse_quantity
 from .engine import run_sweep
@@ -72,8 +74,7 @@ def parse_range(text: str, si_unit: str, key: str) -> np.ndarray:
         n = -1
     if str(n) != count or not 2 <= n <= MAX_POINTS:
         raise SceneError(f"{key} count = {count!r} is out of range (valid range: integer in [2, {MAX_POINTS}])")
-    if spacing not in ("log", "lin"):
-        raise SceneError(f"{key} spacing = {spacing!r} is not known (valid: log, lin)")
+    check_choice(f"{key} spacing", spacing, ("log", "lin"), error=SceneError)
     if not 0.0 < lo < hi:
         raise SceneError(f"{key} = {text!r}: start and stop are out of range (valid range: 0 < start < stop)")
     values = np.geomspace(lo, hi, n) if spacing == "log" else np.linspace(lo, hi, n)
@@ -308,15 +309,17 @@ def write_csv(ds: xr.Dataset, path) -> Path:
         header += [f"{k}_{u}", f"{k}_se_{u}"]
     status = ds["status"].values
     complete = (status == "complete").sum(axis=-1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        fh.write("\n".join(lines) + "\n")
-        w = csv.writer(fh)
-        w.writerow(header)
-        for i, x in enumerate(ds[x_name].values):
-            row = [f"{x:.10g}", int(complete[i])]
-            for k in names:
-                for v in (ds[f"{k}_mean"].values[i], ds[f"{k}_sem"].values[i]):
-                    row.append(f"{v:.10g}" if np.isfinite(v) else "")
-            w.writerow(row)
-    return path
+
+    def write(tmp):
+        with open(tmp, "w", newline="", encoding="utf-8") as fh:
+            fh.write("\n".join(lines) + "\n")
+            w = csv.writer(fh)
+            w.writerow(header)
+            for i, x in enumerate(ds[x_name].values):
+                row = [f"{x:.10g}", int(complete[i])]
+                for k in names:
+                    for v in (ds[f"{k}_mean"].values[i], ds[f"{k}_sem"].values[i]):
+                        row.append(f"{v:.10g}" if np.isfinite(v) else "")
+                w.writerow(row)
+
+    return write_atomically(path, write)

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..output.plotting import save_figure
 from .envelope import SIGMA_REF, write_csv
 
 # -- figure ---------------------------------------------------------------------------
@@ -83,7 +84,7 @@ def write_products(ds: xr.Dataset, output) -> dict:
     out = {"netcdf": write_netcdf(ds, output), "csv": write_csv(ds, output.with_suffix(".csv"))}
     fig = plot_envelope(ds) if ds.attrs.get("product") == "envelope" else plot_cyclic(ds)
     out["figure"] = output.with_suffix(".png")
-    fig.savefig(out["figure"], dpi=130)
+    save_figure(fig, out["figure"], dpi=130)
     plt.close(fig)
     return out
 

@@ -44,8 +44,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import numbers
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,6 +53,7 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 from .. import paths, presets
+from ..checks import check_choice, check_int
 from ..errors import SceneError
 from ..params import InterfaceParams
 from ..units import parse_quantity
@@ -78,24 +77,6 @@ def _table(data: dict, key: str, where: str, required=False) -> dict:
     value = data[key]
     if not isinstance(value, dict):
         raise SceneError(f"{where}{key} must be a table [{key}], got {value!r}")
-    return value
-
-
-def check_int(value, name, lo, hi=None):
-    """An integer setting in [lo, hi]: "not an integer" for a string, float or bool, else "out of range"."""
-    rng = f"integer >= {lo}" if hi is None else f"integer in [{lo}, {hi}]"
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        hint = f": write {value.strip()} without quotes" if isinstance(value, str) \
-            and re.fullmatch(r"\s*[+-]?\d+\s*", value) else ""
-        raise SceneError(f"{name} = {value!r} is not an integer{hint} (valid range: {rng})")
-    if value < lo or (hi is not None and value > hi):
-        raise SceneError(f"{name} = {value!r} is out of range (valid range: {rng})")
-    return int(value)
-
-
-def _choice(value, name, valid):
-    if value not in valid:
-        raise SceneError(f"{name} = {value!r} is not known (valid: {', '.join(valid)})")
     return value
 
 
@@ -238,7 +219,7 @@ def parameters_from_table(table: dict, where: str = "") -> tuple[InterfaceParams
                 raise SceneError(f"{where}missing preset (valid: {', '.join(presets.TABLE1)}) "
                                  f"or the parameters {', '.join(required)}")
             return InterfaceParams(**values), None
-        _choice(preset, f"{where}preset", tuple(presets.TABLE1))
+        check_choice(f"{where}preset", preset, tuple(presets.TABLE1), error=SceneError)
         return presets.TABLE1[preset].replace(**values), preset
     except SceneError:
         raise
@@ -254,11 +235,11 @@ def _run_settings(table: dict, where: str) -> dict:
     option_names = laws.option_names()
     check_keys(table, (*_RUN, *option_names), where)
     out = {**_RUN, **{k: v for k, v in table.items() if k in _RUN}}
-    out["n"] = check_int(out["n"], f"{where}n", 1, N_MAX)
-    out["seed"] = check_int(out["seed"], f"{where}seed", 0)
-    out["sampler"] = _choice(out["sampler"], f"{where}sampler", SAMPLERS)
-    out["law"] = _choice(out["law"], f"{where}law", tuple(laws.LAWS))
-    out["policy"] = _choice(out["policy"], f"{where}policy", POLICIES)
+    out["n"] = check_int(f"{where}n", out["n"], 1, N_MAX, error=SceneError)
+    out["seed"] = check_int(f"{where}seed", out["seed"], 0, error=SceneError)
+    out["sampler"] = check_choice(f"{where}sampler", out["sampler"], SAMPLERS, error=SceneError)
+    out["law"] = check_choice(f"{where}law", out["law"], tuple(laws.LAWS), error=SceneError)
+    out["policy"] = check_choice(f"{where}policy", out["policy"], POLICIES, error=SceneError)
     given = {k: v for k, v in table.items() if k in option_names}
     try:
         own = laws.options_of(out["law"], given).as_dict()
@@ -280,7 +261,7 @@ def _output(table: dict, where: str, folder: Path = Path(".")):
     if snapshots is not None and snapshots != "stage_ends":
         if not isinstance(snapshots, list):
             raise SceneError(f"{where}snapshots = {snapshots!r} must be \"stage_ends\" or a list of step numbers")
-        snapshots = tuple(check_int(s, f"{where}snapshots step", 0) for s in snapshots)
+        snapshots = tuple(check_int(f"{where}snapshots step", s, 0, error=SceneError) for s in snapshots)
     return output, snapshots
 
 
@@ -337,7 +318,7 @@ def _stage(table: dict, where: str) -> paths.Stage:
                              f"or {s} = \"<stress>\" (stress control)")
     if "increments" not in table:
         raise SceneError(f"{where}missing increments (integer >= 1)")
-    increments = check_int(table["increments"], f"{where}increments", 1, 10**7)
+    increments = check_int(f"{where}increments", table["increments"], 1, 10**7, error=SceneError)
     try:
         return paths.Stage(tuple(control), tuple(target), increments,
                            adaptive=table.get("adaptive", False), max_fraction=table.get("max_fraction", 0.1),

@@ -60,10 +60,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import paths
+from ..checks import check_choice, check_int
 from ..errors import SceneError
 from ..params import InterfaceParams
 from ..units import parse_quantity
-from .scene import Scene, check_int, check_keys, read_toml, scene_from_dict
+from .scene import Scene, check_keys, read_toml, scene_from_dict
 
 PATH_QUANTITIES = {
     "sigma_n": ("Pa", "largest prescribed normal stress sigma_1 of the path"),
@@ -118,16 +119,14 @@ def _check_value(name, value):
             raise SceneError(f"{where} = {value!r} is out of range (valid range: finite angle)")
         return v
     if name == "law":
-        if value not in laws.LAWS:
-            raise SceneError(f"{where} = {value!r} is not known (valid: {', '.join(laws.LAWS)})")
-        return value
+        return check_choice(where, value, tuple(laws.LAWS), error=SceneError)
     if name in laws.option_names():  # checked by the first law that declares it
         try:
             return getattr(laws.get(laws.option_names()[name][0]).options(**{name: value}), name)
         except ValueError as err:
             raise SceneError(f"sweep grid: {err}") from None
     lo, hi = {"cycles": (1, 1000), "n": (1, N_MAX)}[name]
-    return check_int(value, where, lo, hi)
+    return check_int(where, value, lo, hi, error=SceneError)
 
 
 def apply_path(path: paths.LoadPath, sigma_n=None, amplitude=None, direction=None, cycles=None) -> paths.LoadPath:
@@ -329,5 +328,5 @@ def _seeds(table, base_seed, where):
             raise SceneError(f"{where}seeds = {seeds!r} must be a non-empty list of integers >= 0")
         return tuple(seeds)
     replicas = table.get("replicas", 1)
-    replicas = check_int(replicas, f"{where}replicas", 1, 100_000)
+    replicas = check_int(f"{where}replicas", replicas, 1, 100_000, error=SceneError)
     return tuple(base_seed + i for i in range(replicas))

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from ..geometry import closure
 from ..params import InterfaceParams
 from ..paths import LoadPath
 
@@ -46,7 +47,7 @@ def reach_height(params: InterfaceParams, delta_1: float, shear: float, closure_
     ``closure_max`` [m] (default c of Delta_1) is the largest closure met so far on the
     path (covers frozen birth angles).  inf when the angle bound reaches pi/2 under shear.
     """
-    c = max(0.0, params.r_o + delta_1)
+    c = float(closure(params, delta_1))
     if closure_max is not None:
         c = max(c, closure_max)
     shear = abs(shear)
@@ -67,7 +68,7 @@ def reach_along(params: InterfaceParams, displacements) -> float:
     d = np.atleast_2d(np.asarray(displacements, dtype=float))
     d = np.vstack([np.zeros((1, 3)), d])
     shear = np.hypot(d[:, 1], d[:, 2])
-    c_run = np.maximum.accumulate(np.maximum(0.0, params.r_o + d[:, 0]))
+    c_run = np.maximum.accumulate(closure(params, d[:, 0]))
     bound = 0.0
     for i in range(1, d.shape[0]):
         d1 = max(d[i - 1, 0], d[i, 0])

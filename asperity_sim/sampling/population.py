@@ -1,7 +1,8 @@
 """A sampled population of asperity contacts (SPEC §2–§3).
 
-Owns sampling: this is the only module that touches random generators.  A population
-is struct-of-arrays (no Python object per asperity): heights r, relative radii R and
+Owns :class:`Population` and its invariants; the random points come from
+:mod:`asperity_sim.sampling.draws` (the only module that touches random generators), mapped
+through :mod:`asperity_sim.sampling.distributions`.  A population is struct-of-arrays (no Python object per asperity): heights r, relative radii R and
 fixed shifted orientation coordinates (u, phi), stored sorted by height so that a
 kernel can skip every asperity that cannot touch at a given displacement.
 
@@ -22,6 +23,7 @@ from functools import cached_property
 import numpy as np
 from scipy import special
 
+from ..checks import check_choice, check_int
 from ..jit import kernel
 from ..params import InterfaceParams
 from .distributions import band_probability, quantile_table, radius_constants
@@ -42,20 +44,6 @@ SAMPLERS = ("random", "sobol")
 
 
 N_MAX = 2**31 - 1
-
-
-def _check_n(n):
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or not 1 <= n <= N_MAX:
-        raise ValueError(f"n = {n!r} is not a valid sample size (valid range: integer in [1, {N_MAX}])")
-    return int(n)
-
-
-def _check_seed(seed):
-    if seed is None:
-        return None
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise ValueError(f"seed = {seed!r} is not a valid seed (valid range: None or integer >= 0)")
-    return int(seed)
 
 
 UNIT_TOL = 1e-12  # largest |cos² phi + sin² phi - 1| accepted in a Population
@@ -206,10 +194,9 @@ class Population:
         """
         if not isinstance(params, InterfaceParams):
             raise ValueError(f"params = {params!r} is not an InterfaceParams")
-        n = _check_n(n)
-        seed = _check_seed(seed)
-        if sampler not in SAMPLERS:
-            raise ValueError(f"sampler = {sampler!r} is not known (valid: {', '.join(SAMPLERS)})")
+        n = check_int("n", n, 1, N_MAX)
+        seed = None if seed is None else check_int("seed", seed, 0)
+        check_choice("sampler", sampler, SAMPLERS)
         p_band, r_band = band_probability(params, r_max), math.inf if r_max is None else float(r_max)
         if not p_band > 0.0:
             raise ValueError(f"r_max = {r_max!r} m holds no probability (P(r <= r_max) = {p_band!r}): band too narrow")

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from ..geometry import closure_and_slope
 from ..jit import kernel
 
 
@@ -23,7 +24,7 @@ def reach(r, R_min, r_o, k_e, beta, d1, d2, d3, theta_max):
     ``r`` is sorted.
     """
     shear = math.hypot(d2, d3)
-    closure = max(0.0, r_o + d1)
+    closure, _ = closure_and_slope(r_o, d1)
     y = 1.0 - k_e * closure / R_min
     theta = max(math.acos(min(max(y, 0.0), 1.0)), theta_max)
     if shear == 0.0:

@@ -1,19 +1,13 @@
 """simulate(): a load path stepped through increments under mixed control (SPEC §6–§7).
 
-Owns the loop: for each stage, increments with cut-backs; for each increment, a Newton
-solve (:mod:`asperity_sim.solve.solver`), then commit (:class:`~asperity_sim.kernels.state.ContactState`)
-and record.  How the next increment is sized and predicted, and the named failure of one
-that cannot be completed, live in :mod:`asperity_sim.solve.stepping`; the errors in
-:mod:`asperity_sim.errors`; what a checkpoint holds of a run, and how a run is saved to it
-and restored from it, in :mod:`asperity_sim.solve.run_checkpoint` (the file format in
-:mod:`asperity_sim.output.checkpoint`).
-Displacement-controlled increments of a small population under a path-independent law (one
-evaluation each, nothing to commit) go through one kernel call per batch instead
-(:meth:`Run.prescribed_batch`), with the same bits.  The loop runs inside ``try/finally``
-so what converged is always kept: on failure the exception carries the partial dataset
-(and it is written if an output file was asked for).
-
-Every input is checked before any work.  A run stops only with a named
+Owns the entry points of a run: :func:`simulate` checks every input before any work (the
+law's options through the law), and builds the :class:`~asperity_sim.solve.run.Run`, which
+owns the loop (increments, cut-backs, commit, record, inside ``try/finally``);
+:func:`resume` continues a run from its checkpoint alone.  How the next increment is sized and
+predicted, and the named failure of one that cannot be completed, live in
+:mod:`asperity_sim.solve.stepping`; the errors in :mod:`asperity_sim.errors`; what a
+checkpoint holds of a run in :mod:`asperity_sim.solve.run_checkpoint` (the file format in
+:mod:`asperity_sim.output.checkpoint`).  A run stops only with a named
 :class:`SimulationError` that says why (a stress the interface cannot carry, an increment
 that does not converge after every cut-back, the wall-time limit), never with NaN.  The
 whole state of a run (:class:`Run`) can be checkpointed at chosen steps and resumed
@@ -27,9 +21,9 @@ import numbers
 import os
 
 from .. import laws
+from ..checks import check_choice, check_file, check_int, check_real, check_writable
 from ..geometry import POLICIES
-from ..kernels.evaluate import check_choice
-from ..params import InterfaceParams, check_real
+from ..params import InterfaceParams
 from ..paths import LoadPath
 from ..sampling.population import N_MAX, SAMPLERS, Population
 from . import run_checkpoint
@@ -93,9 +87,9 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
     options = laws.options_of(law, law_options)
     check_choice("policy", policy, POLICIES)
     check_choice("sampler", sampler, SAMPLERS)
-    n = _check_int("n", n, 1, N_MAX)
+    n = check_int("n", n, 1, N_MAX)
     if seed is not None:
-        seed = _check_int("seed", seed, 0, SEED_MAX)
+        seed = check_int("seed", seed, 0, SEED_MAX)
     settings = SolverSettings() if settings is None else settings
     if not isinstance(settings, SolverSettings):
         raise ValueError(f"settings = {settings!r} is not a SolverSettings")
@@ -103,20 +97,20 @@ def simulate(params: InterfaceParams, path: LoadPath, n: int = 100_000, seed: in
         raise ValueError(f"population = {population!r} is not a Population")
     if population is not None and population.params != params:
         raise ValueError("population was sampled from other parameters than params")
-    output = _check_writable("output", _check_file("output", output))
+    output = check_writable("output", check_file("output", output))
     snaps = _check_snapshots(snapshots)
     if progress is not None and not callable(progress):
         raise ValueError(f"progress = {progress!r} must be callable or None")
     if max_wall_time is not None:
         max_wall_time = check_real("max_wall_time [s]", max_wall_time, 0.0, None, lo_open=True)
-    checkpoint = _check_writable("checkpoint", _check_file("checkpoint", checkpoint))
+    checkpoint = check_writable("checkpoint", check_file("checkpoint", checkpoint))
     if output is not None and checkpoint is not None and os.path.abspath(output) == os.path.abspath(checkpoint):
         raise ValueError(f"output and checkpoint are the same file {os.fspath(output)!r}: give two different paths")
     if checkpoint_every is not None:
-        checkpoint_every = _check_int("checkpoint_every (steps)", checkpoint_every, 1, None)
+        checkpoint_every = check_int("checkpoint_every (steps)", checkpoint_every, 1, None)
         if checkpoint is None:
             raise ValueError(f"checkpoint_every = {checkpoint_every} needs a checkpoint file (checkpoint = None)")
-    resume = _check_file("resume", resume)
+    resume = check_file("resume", resume)
     saved = None
     if resume is not None:
         saved = run_checkpoint.read(resume)
@@ -140,48 +134,13 @@ def resume(checkpoint, *, output=None, progress=None, max_wall_time: float | Non
     ``progress`` and ``max_wall_time`` as in :func:`simulate`.  The result is bit-identical
     to an uninterrupted run (only the wall time and the history attribute differ).
     """
-    checkpoint = _check_file("checkpoint", checkpoint)
+    checkpoint = check_file("checkpoint", checkpoint)
     if checkpoint is None:
         raise ValueError("checkpoint = None is not valid: name the checkpoint file to resume from (str or os.PathLike)")
     saved = run_checkpoint.read(checkpoint)
     every = saved.meta.get("checkpoint_every") if checkpoint_every == "saved" else checkpoint_every
     return simulate(**run_checkpoint.run_arguments(saved), output=output, progress=progress,
                     max_wall_time=max_wall_time, checkpoint=checkpoint, checkpoint_every=every, resume=saved)
-
-
-def _check_int(name, value, lo, hi):
-    bad_type = isinstance(value, bool) or not isinstance(value, numbers.Integral)
-    if bad_type or value < lo or (hi is not None and value > hi):
-        rng = f"integer in [{lo}, {hi}]" if hi is not None else f"integer >= {lo}"
-        raise ValueError(f"{name} = {value!r} is not valid (valid range: {rng})")
-    return int(value)
-
-
-def _check_writable(name, value):
-    """A file path that can be written, checked before any work: not a folder, and its folder exists and is
-    writable or can be created (the nearest existing ancestor is a writable folder, not a file)."""
-    if value is None:
-        return None
-    path = os.path.abspath(os.fspath(value))
-    valid = "valid: a file path in a writable folder"
-    if os.path.isdir(path):
-        raise ValueError(f"{name} = {os.fspath(value)!r} is a folder ({valid})")
-    ancestor = os.path.dirname(path)
-    while not os.path.exists(ancestor):
-        ancestor = os.path.dirname(ancestor)
-    if not os.path.isdir(ancestor):
-        raise ValueError(f"{name} = {os.fspath(value)!r} lies under {ancestor!r}, which is a file ({valid})")
-    if not os.access(ancestor, os.W_OK):
-        raise ValueError(f"{name} = {os.fspath(value)!r}: the folder {ancestor!r} is not writable ({valid})")
-    return value
-
-
-def _check_file(name, value):
-    if value is None:
-        return None
-    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
-        raise ValueError(f"{name} = {value!r} is not a file path (valid: str or os.PathLike, or None)")
-    return value
 
 
 def _check_snapshots(snapshots):

@@ -1,8 +1,7 @@
 """Height-band pruning: sample only the heights a scene can reach (issue 5).
 
-Owns the bound on the heights that can touch along a load path, the choice of a height
-band for a scene, the check that a finished run stayed inside its band, and
-:func:`simulate_pruned`, which samples the band (``Population.sample(..., r_max=)``),
+Owns :func:`simulate_pruned`, which samples the height band a path can reach
+(the bound, the band and its check are in :mod:`asperity_sim.sampling.band`) (``Population.sample(..., r_max=)``),
 runs the path, checks it and re-runs with a wider band if the check fails
 (detect and correct).  An asperity above the band is never stored.
 

@@ -20,12 +20,14 @@ import warnings
 import numpy as np
 
 from .. import laws
+from ..checks import check_delta
 from ..errors import ConvergenceError, Deadline, LawDomainWarning, OutputWriteError, WallTimeExceededError
-from ..kernels.evaluate import Workspace, check_delta, evaluate_steps, evaluate_unchecked, evaluation_from
-from ..kernels.layout import CHUNK, O_NC, O_NP, O_NS, O_SE, O_STRESS, O_TANGENT, O_TH, SERIAL_CHUNKS
+from ..geometry import closure
+from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked, serial_fits
 from ..kernels.state import ContactState
 from ..output.recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from ..output.variables import run_variables
+from ..reference.rules import theta_am
 from ..sampling.population import Population
 from ..version import __version__
 from . import run_checkpoint
@@ -50,11 +52,9 @@ BATCH = 64  # displacement-controlled increments per kernel call (the wall-time 
 
 
 @functools.lru_cache(maxsize=256)
-def _theta_am(params, closure):
+def _theta_am(params, c):
     """theta_am(c) [rad], cached: paths often hold the closure (shear at a prescribed Delta_1)."""
-    from ..reference.rules import theta_am
-
-    return float(theta_am(params, closure))
+    return float(theta_am(params, c))
 
 
 class Run:
@@ -197,25 +197,24 @@ class Run:
         fractions = np.array([f for f, _ in plan])
         start = pos.start_delta
         deltas = start + fractions[:, None] * (end - start)  # the loop's targets, row by row
-        out = evaluate_steps(self.pop, deltas, self.ws, self.law)
-        finite = np.isfinite(out[:, :O_SE]).all(axis=1)  # stress, tangent, covariance (as the solver checks)
+        steps = evaluate_steps(self.pop, deltas, self.ws, self.law)
+        finite = steps.finite  # as the solver checks an evaluation
         m = len(plan) if finite.all() else int(np.argmin(finite))
         if m == 0:
             return False
-        rec.extend(displacement=deltas[:m], stress=out[:m, O_STRESS:O_STRESS + 3],
-                   stress_stderr=out[:m, O_SE:O_SE + 3], displacement_stderr=0.0,
-                   tangent=out[:m, O_TANGENT:O_TANGENT + 9].reshape(m, 3, 3),
-                   n_contact=out[:m, O_NC], n_slip=out[:m, O_NS], n_partial=out[:m, O_NP],
-                   theta_am=[_theta_am(params, max(0.0, params.r_o + d1)) for d1 in deltas[:m, 0]],
-                   mean_theta=out[:m, O_TH], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
-                   **self.domain_flags_of(rec.size, deltas[:m], out[:m, O_STRESS:O_STRESS + 3]))
+        rec.extend(displacement=deltas[:m], stress=steps.stress[:m], stress_stderr=steps.stderr[:m],
+                   displacement_stderr=0.0, tangent=steps.tangent[:m], n_contact=steps.n_contact[:m],
+                   n_slip=steps.n_slip[:m], n_partial=steps.n_partial[:m],
+                   theta_am=[_theta_am(params, float(closure(params, d1))) for d1 in deltas[:m, 0]],
+                   mean_theta=steps.mean_theta[:m], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
+                   **self.domain_flags_of(rec.size, deltas[:m], steps.stress[:m]))
         # the loop's position after the last of them (the points before it feed the predictors), as the loop
         # would leave it: each point before an increment becomes the previous one in turn
         before, s_before = (self.delta, pos.s) if m == 1 else (deltas[m - 2], plan[m - 2][0])
         s_last, ds_last = plan[m - 1]
         for i in range(m - 1):
             pos.advance(pos.s if i == 0 else plan[i - 1][0], self.delta if i == 0 else deltas[i - 1], pos.prev_slope)
-        self.ev = evaluation_from(deltas[m - 1], out[m - 1])
+        self.ev = steps.evaluation(m - 1)
         self.delta = deltas[m - 1].copy()
         self.state.commit(self.delta)  # a path-independent law under policy follow: only delta_c moves
         pos.advance(s_before, before, (self.delta - before) / (s_last - s_before))
@@ -258,7 +257,7 @@ class Run:
                 done_in_stage = rec.count("stage", i_stage)  # bounded: at most stage.budget increments
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
-                           and self.pop.n <= SERIAL_CHUNKS * CHUNK and progress is None)
+                           and serial_fits(self.pop) and progress is None)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
                     if batches and cuts == 0 and not (max_wall_time is not None
@@ -399,7 +398,7 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
         displacement=ev.delta, stress=ev.stress, stress_stderr=stress_se, displacement_stderr=disp_se,
         tangent=ev.tangent,
         n_contact=ev.n_contact, n_slip=ev.n_slip, n_partial=ev.n_partial,
-        theta_am=_theta_am(params, max(0.0, params.r_o + ev.delta[0])), mean_theta=ev.mean_theta,
+        theta_am=_theta_am(params, float(closure(params, ev.delta[0]))), mean_theta=ev.mean_theta,
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
         cutbacks=cutbacks, **extra,
     )

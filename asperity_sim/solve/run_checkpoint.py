@@ -1,9 +1,10 @@
 """What a checkpoint of a run holds: a running :func:`~asperity_sim.simulate` to arrays and back.
 
-Owns the mapping between the state of a run (``driver._Run``) and the arrays and meta
-entries of its checkpoint file; :mod:`asperity_sim.output.checkpoint` owns the file itself (the
-container, the atomic write, the untrusted reading and the checks :func:`~asperity_sim.output.checkpoint.require`
-and :func:`~asperity_sim.output.checkpoint.guard`).  The driver only calls :func:`save` (a run to
+Owns the mapping between the state of a run (:class:`~asperity_sim.solve.run.Run`) and the
+arrays and meta entries of its checkpoint file; :mod:`asperity_sim.output.checkpoint` owns the
+file itself (the container, the untrusted reading and the checks
+:func:`~asperity_sim.output.checkpoint.require` and :func:`~asperity_sim.output.checkpoint.guard`).
+The run and the driver only call :func:`save` (a run to
 a file) and :func:`restore` (a file to the state a run continues from), plus :func:`read`,
 :func:`run_arguments` and :func:`check_same_run` for :func:`~asperity_sim.resume`.
 
@@ -18,7 +19,7 @@ The layout (format :data:`~asperity_sim.output.checkpoint.FORMAT`; n asperities,
   population drawn with ``seed=None`` or passed in cannot be drawn again);
 - ``delta``: the committed displacement (3,) [m]; ``ev_*``: the last converged evaluation
   (stress, standard errors, covariance, tangent, counts, mean angle), which the predictor reads;
-- ``pos_*``: the loop position (``stepping._Position``);
+- ``pos_*``: the loop position (:class:`~asperity_sim.solve.stepping.Position`);
 - ``state_*``: :meth:`ContactState.state_arrays <asperity_sim.kernels.state.ContactState.state_arrays>`;
 - ``energy_*``: running energy sums, event count and transitions (history laws);
 - ``rec_<name>``: the T recorded rows of every output variable;

@@ -12,9 +12,10 @@ import numpy as np
 import xarray as xr
 
 from .. import laws
+from ..checks import check_real
 from ..kernels.evaluate import Workspace, evaluate
 from ..kernels.state import ContactState
-from ..params import InterfaceParams, check_real
+from ..params import InterfaceParams
 from ..sampling.population import Population
 from ..version import __version__
 

@@ -29,12 +29,11 @@ Safeguards:
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..params import check_real
+from ..checks import check_int, check_real
 
 
 @dataclass(frozen=True)
@@ -71,9 +70,7 @@ class SolverSettings:
         check_real("max_step", self.max_step, 0.0, None, lo_open=True)
         check_real("max_search", self.max_search, 0.0, None, lo_open=True)
         for name, lo in (("max_iter", 1), ("max_expansions", 1), ("max_cutbacks", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lo:
-                raise ValueError(f"{name} = {v!r} is not valid (valid range: integer >= {lo})")
+            check_int(name, getattr(self, name), lo)
 
 
 _NONFINITE = "non-finite stress at Delta = {} m: the interface response is beyond the floating-point range"

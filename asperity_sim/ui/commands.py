@@ -10,6 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_choice
+from ..output.atomic import write_atomically
+from ..output.plotting import save_figure
 from .exits import EXIT_FAILED, PROG, UsageError, report_error
 from .files import check_checkpoint, check_output, damaged_file_error, read_run, write_with_scene
 from .progress import CountProgress, RunProgress, is_terminal
@@ -120,7 +123,7 @@ def cmd_plot(args) -> int:
         except (KeyError, IndexError, ValueError, TypeError, AttributeError) as err:
             plt.close("all")
             raise damaged_file_error(args.file, kind, err) from None
-        fig.savefig(out, dpi=130)
+        save_figure(fig, out, dpi=130)
     plt.close(fig)
     print(f"wrote {out}")
     return 0
@@ -142,8 +145,7 @@ def cmd_presets(args) -> int:
     from ..presets import TABLE1
 
     for name in args.names:
-        if name not in TABLE1:
-            raise ValueError(f"preset {name!r} is not known (valid: {', '.join(TABLE1)})")
+        check_choice("preset", name, tuple(TABLE1))
     print(presets_text(args.names))
     return 0
 
@@ -220,7 +222,7 @@ def _cmd_fit(args) -> int:
     from ..runs.scene import scene_from_dict, tomllib
 
     scene_from_dict(tomllib.loads(text), source=str(out))  # what is written is a valid scene
-    out.write_text(text, encoding="utf-8")
+    write_atomically(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     p, se, g = res.params, res.stderr, res.goodness
     print(f"{res.summits.n} summits on {res.surface.nb_grid_pts[0]} x {res.surface.nb_grid_pts[1]} points "
           f"({seconds:.2f} s); KS depths {g['heights']:.3f}, radii {g['radii']:.3f}; "
@@ -232,7 +234,7 @@ def _cmd_fit(args) -> int:
         import matplotlib.pyplot as plt
 
         fig = surfaces.plot_fit(res)
-        fig.savefig(args.plot, dpi=120)
+        save_figure(fig, args.plot, dpi=120)
         plt.close(fig)
         print(f"wrote {args.plot}")
     print(f"wrote {out}")

@@ -8,14 +8,14 @@ and the scene file written for a fit.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import special, stats
 
+from ...checks import check_choice, check_int, check_real
 from ...errors import SurfaceError
-from ...params import InterfaceParams, check_real
+from ...params import InterfaceParams
 from .summits import IDENTIFIED, MIN_SUMMITS, NOT_IDENTIFIED, Summits, find_summits
 from .topography import Surface, composite
 
@@ -90,15 +90,13 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     from ... import presets
 
     if isinstance(base, str):
-        if base not in presets.TABLE1:
-            raise SurfaceError(f"preset = {base!r} is not known (valid: {', '.join(presets.TABLE1)})")
+        check_choice("preset", base, tuple(presets.TABLE1), error=SurfaceError)
         rest, source = presets.TABLE1[base], f"preset {base}"
     elif isinstance(base, InterfaceParams):
         rest, source = base, base_label or "given parameters"
     else:
         raise SurfaceError(f"base = {base!r} is not a preset name or InterfaceParams")
-    if isinstance(bootstrap, bool) or not isinstance(bootstrap, numbers.Integral) or bootstrap < 10:
-        raise SurfaceError(f"bootstrap = {bootstrap!r} is out of range (valid range: integer >= 10)")
+    bootstrap = check_int("bootstrap", bootstrap, 10, error=SurfaceError)
     surf = composite(topography, other, detrend_mode)
     summits = find_summits(surf, min_prominence, window)
     if summits.n < MIN_SUMMITS:
@@ -150,8 +148,7 @@ def empirical_population(result: FitResult, n: int, seed: int = 0, joint: bool =
     from ...sampling.distributions import orientation_from_uniform
     from ...sampling.population import Population
 
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
-        raise SurfaceError(f"n = {n!r} is out of range (valid range: integer >= 1)")
+    n = check_int("n", n, 1, error=SurfaceError)
     s = result.summits
     rng = np.random.default_rng(seed)
     pick = rng.integers(0, s.n, size=int(n))

@@ -8,13 +8,12 @@ m0, m2, m4 and Nayak's bandwidth parameter).
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
+from ...checks import check_int, check_real
 from ...errors import SurfaceError
-from ...params import check_real
 from .topography import as_surface
 
 IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma")
@@ -73,9 +72,7 @@ def find_summits(surface, min_prominence: float = 0.0, window: int = 1) -> Summi
 
     s = as_surface(surface)
     min_prominence = check_real("min_prominence [m]", min_prominence, 0.0)
-    if isinstance(window, bool) or not isinstance(window, numbers.Integral) or not 1 <= window <= 64:
-        raise SurfaceError(f"window = {window!r} is out of range (valid range: integer in [1, 64] pixels)")
-    K = int(window)
+    K = check_int("window [pixels]", window, 1, 64, error=SurfaceError)
     h = s.heights
     nx, ny = h.shape
     dx, dy = s.pixel_size

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ...checks import check_choice, check_int, check_real
 from ...errors import SurfaceError
-from ...params import check_real
 
 INSTALL_HINT = 'pip install "asperity-sim[surfaces]" (or pip install SurfaceTopography)'
 
@@ -136,8 +136,7 @@ def as_surface(s) -> Surface:
 
 def detrend(h: np.ndarray, mode: str = "plane") -> np.ndarray:
     """Heights with the least-squares plane (``plane``), the mean (``mean``) or nothing (``none``) removed."""
-    if mode not in DETRENDS:
-        raise SurfaceError(f"detrend = {mode!r} is not known (valid: {', '.join(DETRENDS)})")
+    check_choice("detrend", mode, DETRENDS, error=SurfaceError)
     if mode == "none":
         return h
     h = h - h.mean()
@@ -225,7 +224,6 @@ def synthetic(nb_grid_pts=512, physical_size=1e-3, *, hurst=0.8, rms_height=None
         kw["short_cutoff"] = check_real("short_cutoff [m]", short_cutoff, 2 * pix, max(L))
     if long_cutoff is not None:
         kw["long_cutoff"] = check_real("long_cutoff [m]", long_cutoff, 2 * pix, None)
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise SurfaceError(f"seed = {seed!r} is out of range (valid range: integer >= 0)")
+    seed = check_int("seed", seed, 0, error=SurfaceError)
     topo = fourier_synthesis(n, L, hurst=hurst, unit="m", rng=np.random.default_rng(int(seed)), **kw)
     return Surface(np.asarray(topo.heights(), dtype=float), L, True, f"synthetic(H={hurst:g}, seed={seed})")
