@@ -1,0 +1,120 @@
+"""The first run on a fresh machine: wall time with an empty numba cache, and where it goes.
+
+A newcomer's first run compiles the kernels it needs; every later run loads them from numba's
+on-disk cache.  This benchmark times, each in a fresh Python process with its own empty cache
+folder (``NUMBA_CACHE_DIR``), from the start of the process to the return of the run:
+
+1. a small ``paper`` run (R1, n = 2000, constant-normal-stress shear, 50 increments);
+2. the same run with ``mdr``;
+3. the README's main job (``scenarios/paper_figures.py``: the paper's three scenarios);
+
+then each again with the cache the first filled (warm).  The compile time of a run is its cold
+time less its warm time; the compile time of each compiled function (numba's own timers: the
+time under the compiler lock, which includes the functions it calls that were compiled for it,
+and the part of it in LLVM) is listed largest first, so that a change can be aimed at what costs.
+
+Run:   python3 benchmarks/cold_start.py [--skip-main-job]
+Writes outputs/cold_start.json and prints a table.  About 3-4 minutes on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "outputs"
+
+SMALL = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import asperity_sim as asim
+from asperity_sim import paths, presets
+t_import = time.perf_counter() - t0
+law = sys.argv[1]
+path = paths.constant_normal_shear(300e6, 10e-6, increments=50)
+t1 = time.perf_counter()
+ds = asim.simulate(presets.R1, path, n=2000, seed=1, law=law)
+t_run = time.perf_counter() - t1
+compiled = []
+import gc
+import numba.core.registry
+from numba.core.dispatcher import Dispatcher
+for obj in gc.get_objects():
+    if isinstance(obj, Dispatcher):
+        for sig, cres in obj.overloads.items():
+            timers = (cres.metadata or {}).get("timers", {})
+            if "compiler_lock" in timers:
+                compiled.append((obj.py_func.__qualname__.split("__")[0], timers["compiler_lock"], timers.get("llvm_lock", 0.0)))
+print(json.dumps({"import_s": t_import, "run_s": t_run, "total_s": time.perf_counter() - t0,
+                  "stress_end": ds.stress.values[-1].tolist(), "compiled": sorted(compiled, key=lambda c: -c[1])}))
+"""
+
+
+def small_run(law: str, cache: Path) -> dict:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", SMALL, law], env=env, capture_output=True, text=True, cwd=ROOT)
+    wall = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise SystemExit(done.stderr[-3000:])
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    out["process_s"] = wall
+    return out
+
+
+def main_job(cache: Path, outdir: Path) -> float:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, str(ROOT / "scenarios" / "paper_figures.py"), "--outdir", str(outdir)],
+                          env=env, capture_output=True, text=True, cwd=ROOT)
+    if done.returncode != 0:
+        raise SystemExit(done.stderr[-3000:])
+    return time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip-main-job", action="store_true", help="only the two small runs")
+    a = ap.parse_args(argv)
+    record = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
+              "commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                                       text=True).stdout.strip()}
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="cold_start_") as tmp:
+        for law in ("paper", "mdr"):
+            cache = Path(tmp) / f"cache_{law}"
+            cold, warm = small_run(law, cache), small_run(law, cache)
+            if cold["stress_end"] != warm["stress_end"]:
+                raise SystemExit(f"{law}: cold and warm runs differ: {cold['stress_end']} != {warm['stress_end']}")
+            record[law] = {"cold_s": cold["process_s"], "warm_s": warm["process_s"], "cold_run_s": cold["run_s"],
+                           "warm_run_s": warm["run_s"], "import_s": cold["import_s"],
+                           "compile_s": cold["run_s"] - warm["run_s"], "compiled": cold["compiled"]}
+        if not a.skip_main_job:
+            cache = Path(tmp) / "cache_main"
+            record["main_job"] = {"cold_s": main_job(cache, Path(tmp) / "out_cold"),
+                                  "warm_s": main_job(cache, Path(tmp) / "out_warm")}
+    record["wall_s"] = time.perf_counter() - t0
+    OUT.mkdir(exist_ok=True)
+    (OUT / "cold_start.json").write_text(json.dumps(record, indent=1) + "\n")
+    print(f"{'run':10s} {'cold [s]':>9s} {'warm [s]':>9s}")
+    for name in ("paper", "mdr", "main_job"):
+        if name in record:
+            print(f"{name:10s} {record[name]['cold_s']:9.1f} {record[name]['warm_s']:9.1f}")
+    for law in ("paper", "mdr"):
+        print(f"\n{law}: compiled functions (time under the compiler lock, of it in LLVM) [s], largest first")
+        for name, total, llvm in record[law]["compiled"][:15]:
+            print(f"  {total:7.2f} {llvm:7.2f}  {name}")
+    print(f"wrote {OUT / 'cold_start.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
