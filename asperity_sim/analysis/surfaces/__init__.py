@@ -4,6 +4,12 @@
 :mod:`~asperity_sim.analysis.surfaces.summits` (summits and spectral moments),
 :mod:`~asperity_sim.analysis.surfaces.fitting` (InterfaceParams and populations from summits) and
 :mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas).
+For the comparison with exact contact mechanics (``scenarios/exact_contact.py``):
+:mod:`~asperity_sim.analysis.surfaces.elliptic` (elliptic summits, the Hertz elliptic contact),
+:mod:`~asperity_sim.analysis.surfaces.contact_scale` (summit curvatures at the scale of the contacts),
+:mod:`~asperity_sim.analysis.surfaces.variants` (the model variants at given pressures),
+:mod:`~asperity_sim.analysis.surfaces.tangential` (the frictional boundary-element solution) and
+:mod:`~asperity_sim.analysis.surfaces.shear` (the ``mdr`` law at a pressure and shear tractions).
 """
 
 from ...errors import SurfaceError
