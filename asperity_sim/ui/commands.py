@@ -215,7 +215,7 @@ def _cmd_fit(args) -> int:
     tops = [surfaces.read(p, physical_sizes=size, unit=args.unit) for p in args.surfaces]
     t0 = time.perf_counter()
     res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
-                       bootstrap=args.bootstrap, seed=args.seed, base_label=label)
+                       bootstrap=args.bootstrap, seed=args.seed, base_label=label, closure=closure)
     seconds = time.perf_counter() - t0
     command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}"
     text = surfaces.scene_text(res, closure=closure, command=command)
@@ -229,7 +229,14 @@ def _cmd_fit(args) -> int:
           f"rank correlation depth-radius {g['spearman_depth_radius']:.3f}")
     for name, unit in (("N", "m-2"), ("alpha", "1"), ("beta", "m"), ("R_m", "m"), ("R_sigma", "m")):
         print(f"  {name:8s} = {getattr(p, name):.5g} ± {se[name]:.2g} {unit}")
-    print(f"  not identified ({', '.join(surfaces.NOT_IDENTIFIED)}): from {res.source_of_rest}")
+    rest = surfaces.NOT_IDENTIFIED
+    if res.pair is not None:  # two surfaces: e and the contact slopes (also in the scene's comments)
+        from ..analysis.surfaces.pair import scene_comments
+
+        print(f"  {'e':8s} = {p.e:.5g} ± {se['e']:.2g} 1 (two surfaces, {res.pair['n_contacts']} summits in contact)")
+        print("  " + scene_comments(res.pair)[1][2:])
+        rest = tuple(n for n in rest if n != "e")
+    print(f"  not identified ({', '.join(rest)}): from {res.source_of_rest}")
     if args.plot is not None:
         import matplotlib.pyplot as plt
 

@@ -3,7 +3,8 @@
 :mod:`~asperity_sim.analysis.surfaces.topography` (surfaces and how they are read or made),
 :mod:`~asperity_sim.analysis.surfaces.summits` (summits and spectral moments),
 :mod:`~asperity_sim.analysis.surfaces.fitting` (InterfaceParams and populations from summits) and
-:mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas).
+:mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas),
+:mod:`~asperity_sim.analysis.surfaces.pair` (what two surfaces tell beyond heights: e and the contact slopes).
 For the comparison with exact contact mechanics (``scenarios/exact_contact.py``):
 :mod:`~asperity_sim.analysis.surfaces.elliptic` (elliptic summits, the Hertz elliptic contact),
 :mod:`~asperity_sim.analysis.surfaces.contact_scale` (summit curvatures at the scale of the contacts),

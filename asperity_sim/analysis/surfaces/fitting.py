@@ -45,6 +45,8 @@ class FitResult:
     summits : Summits
     identified, not_identified : field names; source_of_rest : e.g. "preset R1"
     surface : the composite Surface;  settings : detrend, min_prominence, bootstrap size, seed
+    pair : with two surfaces, :func:`.pair.pair_statistics` at the scene's closure (e and the contact
+           slopes with their standard errors; e is then fitted), else None
     """
 
     params: InterfaceParams
@@ -56,6 +58,7 @@ class FitResult:
     source_of_rest: str = "preset R1"
     surface: Surface | None = None
     settings: dict = field(default_factory=dict)
+    pair: dict | None = None
 
     def source_of(self, name: str) -> str:
         """Where the value of parameter ``name`` came from (one line, for scene comments)."""
@@ -73,12 +76,16 @@ class FitResult:
             se = format_quantity(self.stderr[name], unit) if unit != "1" else f"{self.stderr[name]:.3g}"
             how_se = "Poisson, sqrt(n)/area" if name == "N" else f"bootstrap, {s.get('bootstrap')} resamples"
             return f"fitted: {how[name]}; stderr {se} ({how_se})"
+        if name == "e" and self.pair is not None:
+            return (f"fitted from the two surfaces: ratio of their mean curvatures at the {self.pair['n_contacts']} "
+                    f"summits in contact at {self.pair['closure'] * 1e6:.3g} um (the e of the mean k_e); stderr "
+                    f"{self.pair['e_stderr']:.2g} (bootstrap, {s.get('bootstrap')} resamples)")
         return f"not identified from topography: {self.source_of_rest}"
 
 
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
         min_prominence: float = 0.0, window: int = 1, bootstrap: int = 200, seed: int = 0,
-        base_label: str | None = None) -> FitResult:
+        base_label: str | None = None, closure: float | None = None) -> FitResult:
     """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed).
 
     topography, other : Surface, SurfaceTopography Topography or file name
@@ -86,6 +93,8 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     base_label : where ``base`` came from, for the report (e.g. "scene my.toml")
     min_prominence [m], window [pixels] : summit definition (:func:`find_summits`)
     bootstrap : resamples of the summits for the standard errors (>= 10)
+    closure [m] : with two surfaces, the closure at which e and the contact slopes are measured (default:
+        the scene's, :func:`default_closure`); e is then fitted (:mod:`.pair`)
     """
     from ... import presets
 
@@ -128,7 +137,15 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     settings = {"detrend": detrend_mode, "min_prominence": float(min_prominence), "window": int(window),
                 "bootstrap": int(bootstrap),
                 "seed": int(seed), "source": surf.source}
-    return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings)
+    pair = None
+    if other is not None:  # two surfaces: e and the contact slopes (only second differences of h1 are used,
+        from .pair import pair_statistics  # so its detrending, plane or mean, does not matter)
+
+        at = default_closure(params) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
+        pair = pair_statistics(composite(topography, None, detrend_mode), summits, params, at, bootstrap, seed)
+        params, stderr = params.replace(e=pair["e"]), {**stderr, "e": pair["e_stderr"]}
+    return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings,
+                     pair=pair)
 
 
 # -- empirical population --------------------------------------------------------------
@@ -183,6 +200,7 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
     (default: the depth of the highest 10 % of the summits, :func:`default_closure`).
     """
     from ...units import format_quantity
+    from .pair import scene_comments as pair_comments
 
     p = result.params
     closure = default_closure(p) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
@@ -195,6 +213,7 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
              f"detrend {s.get('detrend')}); KS statistic of depths vs gamma {g['heights']:.3f}, "
              f"of radii vs truncated Gaussian {g['radii']:.3f}; rank correlation of depth and radius "
              f"{g['spearman_depth_radius']:.3f} (the model takes them independent)",
+             *(pair_comments(result.pair) if result.pair is not None else []),
              f"# Parameters not identified by a topography come from {result.source_of_rest}.",
              "# Run:  asperity-sim run THIS_FILE.toml",
              f"title = {_toml_string('normal closure of the fitted interface (' + str(s.get('source', '?')) + ')')}",
