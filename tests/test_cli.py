@@ -85,7 +85,7 @@ def test_presets_print_every_parameter_with_its_unit(capsys):
     fields = [f.name for f in dataclasses.fields(InterfaceParams)]
     for block in blocks:
         quantities = dict(re.findall(r"^  (\w+) += (\S+ \S+)", block, re.M))
-        assert list(quantities) == fields + ["k_e", "E_star", "lam"]
+        assert list(quantities) == fields + ["k_e", "E_star", "lam", "mean_plane_depth"]
         assert all(q.split()[1] in ("m", "Pa", "m-2", "[-]") for q in quantities.values()), quantities
     r1 = blocks[0]
     assert "  beta     = 3.52e-06 m       (3.52 um)" in r1 and "  alpha    = 6.14 [-]" in r1

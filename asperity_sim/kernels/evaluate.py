@@ -20,6 +20,7 @@ or loaded from cache.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,10 @@ from .layout import (
     N_OUT,
     N_SLOT_GEO,
     O_COV,
+    O_AREA,
+    O_AREA_COV,
+    O_AREA_GRAD,
+    O_AREA_VAR,
     O_NA,
     O_NC,
     O_NP,
@@ -64,7 +69,10 @@ class Evaluation:
     covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3)
     [Pa/m] (d sigma_i / d Delta_k), n_contact, n_slip and n_partial (asperity counts),
     mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
-    below the height bound, the most that can touch).
+    below the height bound, the most that can touch); contact_area [1] (real contact area
+    per unit nominal area: the Hertz areas pi R delta_n of the contacts, projected, N w sum),
+    contact_area_var [1] (the Monte Carlo variance of that estimate), contact_area_cov (3,) [Pa]
+    (its covariance with the stress estimate) and contact_area_grad (3,) [1/m] (d area / d Delta).
     """
 
     delta: np.ndarray
@@ -77,6 +85,10 @@ class Evaluation:
     n_partial: int
     mean_theta: float
     n_active: int
+    contact_area: float = 0.0
+    contact_area_var: float = 0.0
+    contact_area_cov: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    contact_area_grad: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
 
 
 class Workspace:
@@ -296,6 +308,14 @@ class Steps:
         return self.rows[:, O_TH]
 
     @property
+    def contact_area(self):
+        return self.rows[:, O_AREA]
+
+    @property
+    def contact_area_stderr(self):
+        return np.sqrt(np.maximum(self.rows[:, O_AREA_VAR], 0.0))
+
+    @property
     def finite(self):
         return np.isfinite(self.rows[:, :O_SE]).all(axis=1)  # stress, tangent, covariance
 
@@ -333,6 +353,10 @@ def evaluation_from(d, out) -> Evaluation:
         n_partial=int(out[O_NP]),
         mean_theta=float(out[O_TH]),
         n_active=int(out[O_NA]),
+        contact_area=float(out[O_AREA]),
+        contact_area_var=float(out[O_AREA_VAR]),
+        contact_area_cov=out[O_AREA_COV:O_AREA_COV + 3],
+        contact_area_grad=out[O_AREA_GRAD:O_AREA_GRAD + 3],
     )
 
 

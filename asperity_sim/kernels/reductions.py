@@ -21,6 +21,7 @@ from .contact import (
     accumulate,
     add_values,
     contact_angle,
+    contact_area,
     follow_angle,
     follow_slope,
     global_force_tangent,
@@ -61,7 +62,8 @@ def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts
     out = local(dn if touch else 1.0, ds, dt, R_j, consts)
     code = out[12]
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds, dn, th1)
-    store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
+    a, a0, a1, a2 = contact_area(R_j, dn, ct, st, cp, sp, ds, th1)
+    store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8, a, a0, a1, a2)
 
 
 @template(error_model="numpy")
@@ -126,7 +128,7 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
         dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
         if dn <= 0.0:
             continue
-        accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1)
+        accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1, dn, R[j])
         acc[I_TH] += th
     partial[ic, :] = acc
 

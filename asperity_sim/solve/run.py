@@ -36,6 +36,7 @@ from .solver import solve_increment
 from .stepping import (
     TRUST,
     Position,
+    area_stderr,
     cubic_predictor,
     effective_stiffness,
     extrapolated_predictor,
@@ -206,7 +207,10 @@ class Run:
                    displacement_stderr=0.0, tangent=steps.tangent[:m], n_contact=steps.n_contact[:m],
                    n_slip=steps.n_slip[:m], n_partial=steps.n_partial[:m],
                    theta_am=[_theta_am(params, float(closure(params, d1))) for d1 in deltas[:m, 0]],
-                   mean_theta=steps.mean_theta[:m], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
+                   mean_theta=steps.mean_theta[:m], contact_area_fraction=steps.contact_area[:m],
+                   contact_area_fraction_stderr=steps.contact_area_stderr[:m],
+                   mean_gap=params.mean_plane_depth - deltas[:m, 0], mean_gap_stderr=0.0,
+                   stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
                    **self.domain_flags_of(rec.size, deltas[:m], steps.stress[:m]))
         # the loop's position after the last of them (the points before it feed the predictors), as the loop
         # would leave it: each point before an increment becomes the previous one in turn
@@ -399,6 +403,8 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
         tangent=ev.tangent,
         n_contact=ev.n_contact, n_slip=ev.n_slip, n_partial=ev.n_partial,
         theta_am=_theta_am(params, float(closure(params, ev.delta[0]))), mean_theta=ev.mean_theta,
+        contact_area_fraction=ev.contact_area, contact_area_fraction_stderr=area_stderr(ev, control),
+        mean_gap=params.mean_plane_depth - ev.delta[0], mean_gap_stderr=disp_se[0],
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
         cutbacks=cutbacks, **extra,
     )

@@ -65,7 +65,8 @@ class FitResult:
                "alpha": "gamma fit of summit depths below the highest summit (method of moments)",
                "beta": "gamma fit of summit depths below the highest summit (method of moments)",
                "R_m": "mean of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
-               "R_sigma": "s.d. of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2"}
+               "R_sigma": "s.d. of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
+               "summit_offset": "mean summit height above the mean height of the surface"}
         if name in how:
             from ...units import format_quantity
 
@@ -79,7 +80,8 @@ class FitResult:
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
         min_prominence: float = 0.0, window: int = 1, bootstrap: int = 200, seed: int = 0,
         base_label: str | None = None) -> FitResult:
-    """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed).
+    """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed), and
+    summit_offset (the height of the summits' mean plane above the surface's) to its heights.
 
     topography, other : Surface, SurfaceTopography Topography or file name
     base : preset name or InterfaceParams giving the parameters topography does not identify
@@ -112,11 +114,17 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     # the depth reference is the highest summit of each resample
     bd = summits.height[idx].max(axis=1, keepdims=True) - summits.height[idx]
     ba, bb, bm, bs = _moments_fit(bd, radius[idx])
+    # the surface's mean plane lies max(summit heights) - mean(h) below the highest summit: the mean
+    # summit depth (alpha+1) beta plus the summits' offset above that plane
+    below_top = summits.height.max() - float(np.mean(surf.heights))
+    offset = max(below_top - (alpha + 1.0) * beta, 0.0)
+    b_offset = summits.height[idx].max(axis=1) - float(np.mean(surf.heights)) - (ba + 1.0) * bb
     stderr = {"N": math.sqrt(summits.n) / summits.area, "alpha": float(ba.std(ddof=1)), "beta": float(bb.std(ddof=1)),
-              "R_m": float(bm.std(ddof=1)), "R_sigma": float(bs.std(ddof=1))}
+              "R_m": float(bm.std(ddof=1)), "R_sigma": float(bs.std(ddof=1)),
+              "summit_offset": float(np.std(b_offset, ddof=1))}
     try:
         params = rest.replace(N=summits.density, alpha=float(alpha), beta=float(beta), R_m=float(R_m),
-                              R_sigma=float(R_sigma))
+                              R_sigma=float(R_sigma), summit_offset=float(offset))
     except ValueError as err:
         raise SurfaceError(f"{surf.source}: fitted parameters are not valid: {err}") from None
     ks_h = stats.kstest(depth, stats.gamma(params.alpha + 1.0, scale=params.beta).cdf).statistic

@@ -16,7 +16,7 @@ from ...checks import check_int, check_real
 from ...errors import SurfaceError
 from .topography import as_surface
 
-IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma")
+IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma", "summit_offset")
 NOT_IDENTIFIED = ("mu", "G", "nu", "e", "r_o", "b", "c", "d")
 MIN_SUMMITS = 20
 
