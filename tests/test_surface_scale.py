@@ -446,3 +446,51 @@ def test_report_lines_and_thresholds_are_consistent():
     assert diagnosis.scale_warnings(replace(r, pixel_scale_fraction=0.0, alignment=0.12, alignment_se=0.02))
     assert not diagnosis.scale_warnings(replace(r, pixel_scale_fraction=0.0, alignment=0.12, alignment_se=0.04))
     assert len(r.lines()) == 2 and "50 px" not in r.lines()[0]
+
+
+# -- command line ------------------------------------------------------------------------
+
+def test_cli_fit_reports_the_scale_warns_and_fits_at_a_cutoff(tmp_path, capsys):
+    from asperity_sim.runs.scene import load_scene
+    from asperity_sim.ui.cli import main
+
+    scan, _ = afm_like()
+    path = tmp_path / "scan.nc"
+    write(path, scan.heights, scan.physical_sizes, "nc")
+    out = tmp_path / "raw.toml"
+    assert main(["fit", str(path), "-o", str(out)]) == 0
+    cap = capsys.readouterr()
+    warned = [line for line in cap.err.splitlines() if line.startswith("asperity-sim: warning:")]
+    assert len(warned) == len(cap.err.splitlines()) == 3
+    assert "pixels 1 nm x 1 nm" in cap.out and "quantised in steps of 0.1 nm" in cap.out
+    text = out.read_text()
+    assert text.count("# WARNING:") == 3 and "no cutoff" in text
+    out = tmp_path / "cut.toml"
+    assert main(["fit", str(path), "-o", str(out), "--cutoff", "20 nm"]) == 0
+    cap = capsys.readouterr()
+    assert cap.err == "" and "cutoff 20 nm (20 px, given)" in cap.out
+    assert "--cutoff '20 nm'" in out.read_text() and load_scene(out).params.N > 0
+    out = tmp_path / "auto.toml"
+    assert main(["fit", str(path), "-o", str(out), "--cutoff", "auto"]) == 0
+    assert "auto" in capsys.readouterr().out and "summits per cutoff" in out.read_text()
+
+
+@pytest.mark.parametrize("value, message", [("5 GPa", "--cutoff"), ("0 nm", "out of range"), ("-3 nm", "--cutoff"),
+                                            ("soon", "--cutoff")])
+def test_cli_fit_bad_cutoff_exits_1(tmp_path, capsys, value, message):
+    from asperity_sim.ui.cli import main
+
+    _, clean = afm_like(n=64, short=8)
+    path = tmp_path / "s.nc"
+    write(path, clean.heights, clean.physical_sizes, "nc")
+    assert main(["fit", str(path), "-o", str(tmp_path / "o.toml"), "--cutoff", value]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
+def test_cli_fit_profile_exits_1(tmp_path, capsys):
+    from asperity_sim.ui.cli import main
+
+    np.savetxt(tmp_path / "p.txt", np.random.default_rng(0).random(100))
+    assert main(["fit", str(tmp_path / "p.txt"), "--size", "1", "--unit", "um", "-o", str(tmp_path / "o.toml")]) == 1
+    assert "needs areal data" in capsys.readouterr().err
