@@ -188,6 +188,18 @@ def cmd_sweep(args) -> int:
 
 # -- fit -----------------------------------------------------------------------------
 
+def _cutoff(text):
+    """--cutoff: None, "auto" or a length [m] > 0."""
+    from ..units import parse_quantity
+
+    if text is None or text.strip().lower() == "auto":
+        return None if text is None else "auto"
+    value = parse_quantity(text, "m", "--cutoff")
+    if not value > 0.0:
+        raise ValueError(f"--cutoff = {text!r} is out of range (valid: a length > 0, e.g. \"50 nm\", or auto)")
+    return value
+
+
 def _cmd_fit(args) -> int:
     from ..analysis import surfaces
     from ..runs.scene import load_scene
@@ -209,15 +221,24 @@ def _cmd_fit(args) -> int:
         size = size * 2 if len(size) == 1 else size
     min_prom = parse_quantity(args.min_prominence, "m", "--min-prominence")
     closure = None if args.closure is None else parse_quantity(args.closure, "m", "--closure")
+    cutoff = _cutoff(args.cutoff)
     base, label = args.preset, None
     if args.scene is not None:
         base, label = load_scene(args.scene).params, f"scene {args.scene}"
     tops = [surfaces.read(p, physical_sizes=size, unit=args.unit) for p in args.surfaces]
     t0 = time.perf_counter()
-    res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
-                       bootstrap=args.bootstrap, seed=args.seed, base_label=label)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", surfaces.SurfaceScaleWarning)
+        res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
+                           bootstrap=args.bootstrap, seed=args.seed, base_label=label, cutoff=cutoff)
+    for w in caught:  # the scale warnings one line each; others go on as Python would show them
+        if issubclass(w.category, surfaces.SurfaceScaleWarning):
+            print(f"{PROG}: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     seconds = time.perf_counter() - t0
-    command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}"
+    command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}" + \
+        (f" --cutoff {args.cutoff!r}" if args.cutoff is not None else "")
     text = surfaces.scene_text(res, closure=closure, command=command)
     from ..runs.scene import scene_from_dict, tomllib
 
@@ -230,6 +251,8 @@ def _cmd_fit(args) -> int:
     for name, unit in (("N", "m-2"), ("alpha", "1"), ("beta", "m"), ("R_m", "m"), ("R_sigma", "m")):
         print(f"  {name:8s} = {getattr(p, name):.5g} ± {se[name]:.2g} {unit}")
     print(f"  not identified ({', '.join(surfaces.NOT_IDENTIFIED)}): from {res.source_of_rest}")
+    for line in res.scale.lines():
+        print(f"  {line}")
     if args.plot is not None:
         import matplotlib.pyplot as plt
 

@@ -111,6 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--window", type=_int_at_least(1), default=1, metavar="K",
                    help="a summit is the highest point of the (2K+1)² pixel square around it (default 1: the 8 "
                         "neighbours; raise it against instrument noise)")
+    f.add_argument("--cutoff", metavar="LENGTH|auto",
+                   help="fit at this scale: short-wavelength cutoff of the Gaussian S-filter applied to the heights "
+                        "before the summits are found, e.g. \"50 nm\", or auto (the smallest cutoff at which summit "
+                        "density and curvature stop depending on it); default: the raw map")
     f.add_argument("--closure", metavar="LENGTH", help="largest Delta_1 of the scene's path, e.g. \"2 um\" "
                                                         "(default: depth reached by 10 %% of the summits)")
     f.add_argument("--bootstrap", type=_int_at_least(10), default=200, help="bootstrap resamples (default 200)")
