@@ -51,6 +51,7 @@ _RANGES = {
     "c": (None, None, False, False),  # bounded jointly with b and d below
     "d": (None, None, False, False),
     "summit_offset": (0.0, None, False, False),
+    "interaction": (0.0, None, False, False),
 }
 
 
@@ -72,6 +73,8 @@ class InterfaceParams:
     b, c, d : float [1]   shape of the orientation density, Eq. (10) corrected
     summit_offset : float [m]  height of the summits' mean plane above the surface's mean plane;
                           only the mean gap reads it (default 0: the gap from the summits' mean plane)
+    interaction : float [1]  strength of the mean-field elastic interaction between contacts
+                          (:mod:`asperity_sim.kernels.interaction`; default 0: none, 1: the mean-field estimate)
     """
 
     N: float = _f("m-2", "asperity contacts per unit nominal area")
@@ -88,6 +91,8 @@ class InterfaceParams:
     c: float = _f("1", "orientation density coefficient c (cos 2 phi term)", default=0.0)
     d: float = _f("1", "orientation density coefficient d (sin 2 phi term)", default=0.0)
     summit_offset: float = _f("m", "height of the summits' mean plane above the surface's mean plane", default=0.0)
+    interaction: float = _f("1", "strength of the mean-field elastic interaction between contacts (0: none)",
+                            default=0.0)
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, hi_open) in _RANGES.items():

@@ -57,6 +57,7 @@ from .layout import (
     finish,
 )
 from .reach import bounds
+from . import interaction
 from .specialise import kernels
 from .state import ContactState
 
@@ -72,7 +73,9 @@ class Evaluation:
     below the height bound, the most that can touch); contact_area [1] (real contact area
     per unit nominal area: the Hertz areas pi R delta_n of the contacts, projected, N w sum),
     contact_area_var [1] (the Monte Carlo variance of that estimate), contact_area_cov (3,) [Pa]
-    (its covariance with the stress estimate) and contact_area_grad (3,) [1/m] (d area / d Delta).
+    (its covariance with the stress estimate) and contact_area_grad (3,) [1/m] (d area / d Delta);
+    delta_contact (3,) [m] the displacement the contacts see under elastic interaction
+    (:mod:`asperity_sim.kernels.interaction`; None without it).
     """
 
     delta: np.ndarray
@@ -89,6 +92,11 @@ class Evaluation:
     contact_area_var: float = 0.0
     contact_area_cov: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     contact_area_grad: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    delta_contact: np.ndarray | None = None  # the displacement the contacts see, when it differs (interaction)
+
+    def at_contacts(self) -> np.ndarray:
+        """The displacement the contacts see [m]: ``delta`` unless elastic interaction shifts it."""
+        return self.delta if self.delta_contact is None else self.delta_contact
 
 
 class Workspace:
@@ -116,6 +124,7 @@ class Workspace:
         self.box_pop = None  # the population the listed asperities belong to; None: no valid list
         self.n_box, self.tan_box = 0, 0.0
         self.trials_by_index = [0, 0, 0]  # trials that tested every asperity, built the list, used it
+        self.interaction_offset = 0.0  # Delta_c,1 - Delta_1 of the last evaluation under elastic interaction
 
     @staticmethod
     def trial_key(delta, state):
@@ -212,8 +221,20 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
     """:func:`evaluate` on arguments already checked (for a solver that calls it many times).
 
     ``d`` a finite float array (3,), ``state`` a :class:`~asperity_sim.kernels.state.ContactState`
-    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.
+    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.  With elastic interaction
+    (``params.interaction`` > 0) the contacts' displacement is solved for first
+    (:func:`~asperity_sim.kernels.interaction.solve`, from the workspace's last offset).
     """
+    k = interaction.kappa(pop.params)
+    if k == 0.0:
+        return at_contacts(pop, d, state, workspace)
+    ev = interaction.solve(lambda c: at_contacts(pop, c, state, workspace), d, k, workspace.interaction_offset)
+    workspace.interaction_offset = float(ev.delta_contact[0] - d[0])
+    return ev
+
+
+def at_contacts(pop, d, state, workspace) -> Evaluation:
+    """The sums of the kernels with the contacts at the displacement ``d`` (no interaction)."""
     law = state.law
     tb = EMPTY if state.theta_birth is None else state.theta_birth
     out = np.empty(N_OUT)
@@ -330,8 +351,10 @@ def evaluate_steps(pop, deltas, workspace, law="paper") -> Steps:
     One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
     meant for small populations (:func:`serial_fits`), where the per-call overhead of
     :func:`evaluate` exceeds the kernel time.  ``deltas`` finite and C-contiguous,
-    ``workspace`` a :class:`Workspace` for ``pop``.
+    ``workspace`` a :class:`Workspace` for ``pop``; no elastic interaction (``params.interaction`` 0).
     """
+    if pop.params.interaction != 0.0:
+        raise ValueError("evaluate_steps has no elastic interaction: evaluate each displacement (interaction > 0)")
     lw = laws.get(law)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))

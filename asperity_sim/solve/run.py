@@ -163,7 +163,7 @@ class Run:
         return evaluate_unchecked(self.pop, check_delta(delta), self.state, self.ws)
 
     def take_snapshot(self, step):
-        self.rec.add_snapshot(step, self.state.snapshot(self.delta))
+        self.rec.add_snapshot(step, self.state.snapshot(self.ev.at_contacts()))
 
     def save_checkpoint(self, target, every, wall):
         run_checkpoint.save(self, target, every=every, wall_time=wall)
@@ -261,7 +261,7 @@ class Run:
                 done_in_stage = rec.count("stage", i_stage)  # bounded: at most stage.budget increments
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
-                           and serial_fits(self.pop) and progress is None)
+                           and serial_fits(self.pop) and progress is None and params.interaction == 0.0)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
                     if batches and cuts == 0 and not (max_wall_time is not None
@@ -295,6 +295,9 @@ class Run:
                                  else extrapolated_predictor(guess, self.delta, pos, s, s_new, free))
                     # fresh contacts get springs that fit their overlap at the stage's end point
                     self.state.reference = np.where(free, self.delta, end)
+                    # under elastic interaction every increment's first evaluation starts from the offset of the
+                    # last converged one (so a resumed run repeats the same iterations)
+                    self.ws.interaction_offset = float(self.ev.at_contacts()[0] - self.ev.delta[0])
                     try:
                         result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
                     except Deadline:
@@ -314,8 +317,8 @@ class Run:
                     consistent = False
                     pos.advance(s, self.delta, slope)
                     ev = self.ev = result.evaluation
-                    self.delta = delta = ev.delta.copy()
-                    c = self.state.commit(delta, ev.n_active, self.ws)
+                    self.delta = ev.delta.copy()
+                    c = self.state.commit(ev.at_contacts(), ev.n_active, self.ws)
                     if c is not None:
                         e = self.energy
                         self.energy = {"external_work": e["external_work"] + c.work, "elastic_energy": c.stored,

@@ -135,7 +135,8 @@ def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> N
     require(arrays, "pop_u", shape=(n,), dtype=f8, lo=0.0, hi=half_pi)
     for name in ("pop_cos_phi", "pop_sin_phi"):
         require(arrays, name, shape=(n,), dtype=f8, lo=-1.0, hi=1.0)
-    for name in ("delta", "ev_delta", "ev_stress", "ev_stderr", "pos_start_delta", "pos_start_stress"):
+    for name in ("delta", "ev_delta", "ev_delta_contact", "ev_stress", "ev_stderr", "pos_start_delta",
+                 "pos_start_stress"):
         require(arrays, name, shape=(3,), dtype=f8)
     for name in ("ev_covariance", "ev_tangent"):
         require(arrays, name, shape=(3, 3), dtype=f8)
@@ -182,7 +183,7 @@ def save(run, path, *, every, wall_time) -> None:
     pop, ev, pos = run.pop, run.ev, run.pos
     arrays = {"pop_r": pop.r, "pop_R": pop.R, "pop_u": pop.u, "pop_cos_phi": pop.cos_phi,
               "pop_sin_phi": pop.sin_phi, "delta": run.delta,
-              "ev_delta": ev.delta, "ev_stress": ev.stress, "ev_stderr": ev.stderr,
+              "ev_delta": ev.delta, "ev_delta_contact": ev.at_contacts(), "ev_stress": ev.stress, "ev_stderr": ev.stderr,
               "ev_covariance": ev.covariance, "ev_tangent": ev.tangent,
               "ev_ints": np.array([ev.n_contact, ev.n_slip, ev.n_partial, ev.n_active], dtype=np.int64),
               "ev_mean_theta": np.array([ev.mean_theta]),
@@ -270,7 +271,9 @@ def restore(saved: Saved, *, params, n_stages, law, policy, options, variables, 
                         tangent=arrays["ev_tangent"].copy(), n_contact=int(ints[0]), n_slip=int(ints[1]),
                         n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]), n_active=int(ints[3]),
                         contact_area=float(arrays["ev_area"][0]), contact_area_var=float(arrays["ev_area"][1]),
-                        contact_area_cov=arrays["ev_area"][2:5].copy(), contact_area_grad=arrays["ev_area"][5:8].copy())
+                        contact_area_cov=arrays["ev_area"][2:5].copy(), contact_area_grad=arrays["ev_area"][5:8].copy(),
+                        delta_contact=(None if np.array_equal(arrays["ev_delta_contact"], arrays["ev_delta"])
+                                       else arrays["ev_delta_contact"].copy()))
         if law.history is not None:
             ef = arrays["energy_f"]
             energy = {"external_work": float(ef[0]), "elastic_energy": float(ef[1]), "dissipation": float(ef[2]),

@@ -18,7 +18,7 @@ from ...errors import SurfaceError
 from .topography import as_surface
 
 IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma", "summit_offset")
-NOT_IDENTIFIED = ("mu", "G", "nu", "e", "r_o", "b", "c", "d")
+NOT_IDENTIFIED = ("mu", "G", "nu", "e", "r_o", "b", "c", "d", "interaction")
 MIN_SUMMITS = 20
 
 
