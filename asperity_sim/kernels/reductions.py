@@ -72,9 +72,11 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
 
     Per block of BLOCK asperities: unless the whole block lies below the closure, a loop that
     LLVM vectorises marks the asperities :func:`may_touch_follow` keeps (no trigonometry, no
-    branch), a scalar pass lists them and copies their inputs, contiguous, into ``inp``;
-    :func:`values_follow` fills ``vals`` in a loop that LLVM vectorises; the columns are
-    summed in order (no fastmath: the same bits however LLVM vectorised).
+    branch) and a scalar pass lists them; their inputs are copied, contiguous, into ``inp`` and
+    :func:`values_follow` fills ``vals`` in a loop that LLVM vectorises; the columns are summed in
+    order (no fastmath: the same bits however LLVM vectorised).  One call site of
+    :func:`values_follow`, for both kinds of block: numba inlines a copy of it per call site, and
+    the copy is most of the kernel's compile time.
     """
     lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
     vals = np.empty(N_VAL * BLOCK)
@@ -87,8 +89,7 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
         if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
             m = b1 - b0
             for i in range(m):
-                values_follow(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
-                              d2, d3, closure, dc, k_e, consts)
+                at[i] = b0 + i
         else:
             for j in range(b0, b1):  # vectorised: which asperities may touch
                 cp, sp = cos_phi[j], sin_phi[j]
@@ -99,16 +100,16 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
             for i in range(b1 - b0):  # their positions, contiguous
                 at[m] = b0 + i
                 m += kept[i]
-            for i in range(m):  # their inputs, contiguous
-                j = at[i]
-                inp[X_X * BLOCK + i] = d1 - r[j]
-                inp[X_CP * BLOCK + i] = cos_phi[j]
-                inp[X_SP * BLOCK + i] = sin_phi[j]
-                inp[X_R * BLOCK + i] = R[j]
-                inp[X_U * BLOCK + i] = u[j]
-            for i in range(m):
-                values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
+        for i in range(m):  # their inputs, contiguous
+            j = at[i]
+            inp[X_X * BLOCK + i] = d1 - r[j]
+            inp[X_CP * BLOCK + i] = cos_phi[j]
+            inp[X_SP * BLOCK + i] = sin_phi[j]
+            inp[X_R * BLOCK + i] = R[j]
+            inp[X_U * BLOCK + i] = u[j]
+        for i in range(m):
+            values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                          inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
         add_values(vals, m, acc)
     partial[ic, :] = acc
 
