@@ -559,3 +559,11 @@ def test_info_reads_the_wall_time_of_new_and_older_files(tmp_path, capsys):
     assert cli.main(["info", str(tmp_path / "old.nc")]) == 0
     assert "wall time 12.35 s" in capsys.readouterr().out
     assert cli.main(["plot", str(tmp_path / "old.nc")]) == 0
+
+
+
+def test_warmup_compiles_a_law_and_says_what_it_did(capsys):
+    assert cli.main(["warmup", "--law", "paper"]) == 0
+    out = capsys.readouterr().out
+    assert "asperity-sim: compiling the paper kernels" in out and "kernels ready for paper in" in out
+    assert cli.main(["warmup", "--law", "nosuchlaw"]) == exits.EXIT_USAGE

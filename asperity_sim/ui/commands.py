@@ -1,4 +1,4 @@
-"""The commands of ``asperity-sim``: run, plot, info, presets, sweep, fit, envelope, cyclic.
+"""The commands of ``asperity-sim``: run, plot, info, presets, sweep, fit, envelope, cyclic, warmup.
 """
 
 from __future__ import annotations
@@ -147,6 +147,15 @@ def cmd_presets(args) -> int:
     for name in args.names:
         check_choice("preset", name, tuple(TABLE1))
     print(presets_text(args.names))
+    return 0
+
+
+def cmd_warmup(args) -> int:
+    from ..solve.warmup import warmup
+
+    t0 = time.perf_counter()
+    seconds = warmup(args.law, report=lambda text: print(f"{PROG}: {text}", flush=True))
+    print(f"kernels ready for {', '.join(seconds)} in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -336,5 +345,5 @@ def cmd_cyclic(args) -> int:
 
 
 COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep,
-            "fit": _cmd_fit, "envelope": cmd_envelope, "cyclic": cmd_cyclic}
+            "fit": _cmd_fit, "envelope": cmd_envelope, "cyclic": cmd_cyclic, "warmup": cmd_warmup}
 

@@ -79,6 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
                                     "derived quantity with its unit.")
     pr.add_argument("names", nargs="*", metavar="PRESET", help="only these presets (R1, S1, R2, S2; default: all)")
 
+    w = sub.add_parser("warmup", parents=[common], help="compile the kernels ahead (first run only)",
+                       description="Compile the numba kernels a run of each law needs and write them to numba's "
+                                   "cache, so that the first run does not wait for them (a job script or a Dask "
+                                   "worker's start-up calls this).")
+    w.add_argument("--law", action="append", choices=tuple(laws.LAWS), default=None,
+                   help="only this law (repeatable; default: every registered law)")
+
     s = sub.add_parser("sweep", parents=[common], help="run a grid of parameters and replicas (on Dask)",
                        description="Run the grid and replicas of SWEEP.toml and write one netCDF file.")
     s.add_argument("sweep", type=Path, metavar="SWEEP.toml")
