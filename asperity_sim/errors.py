@@ -4,7 +4,10 @@ A run stops only with a named :class:`SimulationError` that says why (each carri
 converged part of the run as ``.dataset``), never with NaN; an input that cannot be used is a
 ``ValueError`` naming the value and the valid range, or one of its subclasses naming where it
 came from (:class:`CheckpointError`, :class:`SceneError`, :class:`SurfaceError`); a
-path-independent law driven outside its domain warns with :class:`LawDomainWarning`.
+path-independent law driven outside its domain warns with :class:`LawDomainWarning`, and a fit
+of a topography whose summits describe the instrument rather than the surface (pixel-scale
+summits, quantised heights, scan-line artefacts, non-square pixels, missing data) warns with
+:class:`SurfaceScaleWarning`.
 """
 
 from __future__ import annotations
@@ -48,6 +51,12 @@ class LawDomainWarning(UserWarning):
 
 class SurfaceError(ValueError):
     """A topography that cannot be used; the message names the file or value and what is allowed."""
+
+
+class SurfaceScaleWarning(UserWarning):
+    """A fit's summits may describe the instrument rather than the surface (see
+    :mod:`asperity_sim.analysis.surfaces.diagnosis`): the message says what was measured, the
+    threshold it passed and what to do (usually ``--cutoff``)."""
 
 
 class SceneError(ValueError):

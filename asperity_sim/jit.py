@@ -7,6 +7,10 @@ Owns the two decorators every kernel of the package is written with:
   placeholders, compiled once per law by :mod:`asperity_sim.kernels.specialise` with the
   options given here.
 
+The first compile of each group of kernels in a process (a law's reductions, the other kernels)
+says so once on a terminal (:class:`CompileNotice`): a first run after an install or an upgrade
+waits for the compiler, and the user should know why.
+
 Why a fingerprint.  numba caches a compiled kernel on disk and reuses it as long as the
 kernel's own source file is unchanged; it does not notice an edit in a function the kernel
 calls from another file, and would go on running the old code.  A kernel can only call
@@ -22,11 +26,13 @@ from __future__ import annotations
 import functools
 import hashlib
 import re
+import sys
 from pathlib import Path
 
 import numba
+from numba.core import event
 
-__all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag"]
+__all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag", "CompileNotice"]
 
 PACKAGE = Path(__file__).resolve().parent
 COMPILED = re.compile(rb"^@(kernel|template)\(|^\s*(import|from) numba\b", flags=re.M)
@@ -77,3 +83,38 @@ def template(**options):
         return f
 
     return mark
+
+
+class CompileNotice(event.Listener):
+    """Says once per group, on a terminal, that the package's kernels are being compiled.
+
+    numba announces every compile that its on-disk cache could not serve (``numba:compile``);
+    a kernel of the package compiled for the first time in this process starts its group's line:
+    the law's name for the reductions specialised for a law (``slot_pass__mdr_<fingerprint>``),
+    "shared" for the others.  Nothing is said when stderr is not a terminal (``isatty``).
+    """
+
+    def __init__(self, stream=None, isatty=None):
+        self.stream, self.isatty, self.said = stream, isatty, set()
+
+    def on_start(self, ev):
+        f = getattr((ev.data or {}).get("dispatcher"), "py_func", None)
+        if f is None or not f.__module__.startswith(__name__.rpartition(".")[0] + "."):
+            return
+        name = f.__qualname__
+        group = name.split("__", 1)[1].rpartition("_")[0] if name.count("__") and "_" in name.split("__", 1)[1] else ""
+        group = group or "shared"
+        stream = self.stream or sys.stderr
+        if group in self.said or not (self.isatty or stream.isatty)():
+            return
+        self.said.add(group)
+        what = "the shared kernels" if group == "shared" else f"the {group} law's kernels"
+        print(f"asperity_sim: compiling {what} (first run after an install or an upgrade only: later runs load "
+              "them from numba's cache; `asperity-sim warmup` compiles them ahead)", file=stream, flush=True)
+
+    def on_end(self, ev):
+        pass
+
+
+NOTICE = CompileNotice()
+event.register("numba:compile", NOTICE)

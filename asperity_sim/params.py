@@ -50,6 +50,8 @@ _RANGES = {
     "b": (-1.0, 2.0, False, False),
     "c": (None, None, False, False),  # bounded jointly with b and d below
     "d": (None, None, False, False),
+    "summit_offset": (0.0, None, False, False),
+    "interaction": (0.0, None, False, False),
 }
 
 
@@ -69,6 +71,10 @@ class InterfaceParams:
     e : float [1]         curvature ratio R1/R2 (Eq. 4); default 1
     r_o : float [m]       initial closure, widens the orientation extent only (SPEC §3)
     b, c, d : float [1]   shape of the orientation density, Eq. (10) corrected
+    summit_offset : float [m]  height of the summits' mean plane above the surface's mean plane;
+                          only the mean gap reads it (default 0: the gap from the summits' mean plane)
+    interaction : float [1]  strength of the mean-field elastic interaction between contacts
+                          (:mod:`asperity_sim.kernels.interaction`; default 0: none, 1: the mean-field estimate)
     """
 
     N: float = _f("m-2", "asperity contacts per unit nominal area")
@@ -84,6 +90,9 @@ class InterfaceParams:
     b: float = _f("1", "orientation density coefficient b (P2 term)", default=0.0)
     c: float = _f("1", "orientation density coefficient c (cos 2 phi term)", default=0.0)
     d: float = _f("1", "orientation density coefficient d (sin 2 phi term)", default=0.0)
+    summit_offset: float = _f("m", "height of the summits' mean plane above the surface's mean plane", default=0.0)
+    interaction: float = _f("1", "strength of the mean-field elastic interaction between contacts (0: none)",
+                            default=0.0)
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, hi_open) in _RANGES.items():
@@ -112,6 +121,12 @@ class InterfaceParams:
     def lam(self) -> float:
         """lambda = (2-nu)/(2(1-nu)) of Eq. (17)."""
         return (2.0 - self.nu) / (2.0 * (1.0 - self.nu))
+
+    @derived.of("m", "depth of the surface's mean plane below its highest summit, (alpha+1) beta + summit_offset")
+    def mean_plane_depth(self) -> float:
+        """Depth [m] of the surface's mean plane below the highest summit: the mean summit depth
+        (alpha+1) beta (SPEC §2) plus ``summit_offset``; the mean gap is this less Delta_1."""
+        return (self.alpha + 1.0) * self.beta + self.summit_offset
 
     @property
     def R_bounds(self) -> tuple[float, float]:

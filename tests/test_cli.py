@@ -85,7 +85,7 @@ def test_presets_print_every_parameter_with_its_unit(capsys):
     fields = [f.name for f in dataclasses.fields(InterfaceParams)]
     for block in blocks:
         quantities = dict(re.findall(r"^  (\w+) += (\S+ \S+)", block, re.M))
-        assert list(quantities) == fields + ["k_e", "E_star", "lam"]
+        assert list(quantities) == fields + ["k_e", "E_star", "lam", "mean_plane_depth"]
         assert all(q.split()[1] in ("m", "Pa", "m-2", "[-]") for q in quantities.values()), quantities
     r1 = blocks[0]
     assert "  beta     = 3.52e-06 m       (3.52 um)" in r1 and "  alpha    = 6.14 [-]" in r1
@@ -559,3 +559,11 @@ def test_info_reads_the_wall_time_of_new_and_older_files(tmp_path, capsys):
     assert cli.main(["info", str(tmp_path / "old.nc")]) == 0
     assert "wall time 12.35 s" in capsys.readouterr().out
     assert cli.main(["plot", str(tmp_path / "old.nc")]) == 0
+
+
+
+def test_warmup_compiles_a_law_and_says_what_it_did(capsys):
+    assert cli.main(["warmup", "--law", "paper"]) == 0
+    out = capsys.readouterr().out
+    assert "asperity-sim: compiling the paper kernels" in out and "kernels ready for paper in" in out
+    assert cli.main(["warmup", "--law", "nosuchlaw"]) == exits.EXIT_USAGE

@@ -397,3 +397,69 @@ def test_evaluate_steps_gives_the_bits_of_evaluate_at_each_row():
         np.testing.assert_array_equal(steps.stress[i], expected.stress)
         assert steps.n_contact[i] == expected.n_contact and steps.finite[i]
     assert steps.evaluation(0).n_contact == 0 < steps.evaluation(2).n_contact
+
+
+# ---- the contact area fraction (per-step output of every run) ----
+
+def _area_closed_form(p, d1):
+    """Contacts normal to the plane (e = 0): N pi E[R] E[(d1 - r)+], gamma heights (SPEC §2), truncated
+    Gaussian radii; E[(d1 - r)+] = d1 P(alpha+1, d1/beta) - (alpha+1) beta P(alpha+2, d1/beta)."""
+    from scipy import special, stats
+
+    lo, hi = p.R_bounds
+    a, b = (lo - p.R_m) / p.R_sigma, (hi - p.R_m) / p.R_sigma
+    mean_R = stats.truncnorm(a, b, loc=p.R_m, scale=p.R_sigma).mean()
+    x = d1 / p.beta
+    depth = d1 * special.gammainc(p.alpha + 1.0, x) - (p.alpha + 1.0) * p.beta * special.gammainc(p.alpha + 2.0, x)
+    return p.N * math.pi * mean_R * depth
+
+
+@pytest.mark.statistical
+@pytest.mark.parametrize("shear", [0.0, 4 * um])
+def test_contact_area_matches_the_closed_form_of_normal_contacts(shear):
+    """e = 0: every contact normal to the plane, delta_n = Delta_1 - r whatever the shear; the Monte Carlo
+    area fraction within 4 standard errors of N pi E[R] E[(Delta_1 - r)+]."""
+    p = presets.R1.replace(e=0.0)
+    pop = Population.sample(p, 200_000, seed=11)
+    for d1 in (10 * um, 20 * um, 30 * um):
+        ev = evaluate(pop, [d1, shear, 0.5 * shear])
+        expected = _area_closed_form(p, d1)
+        se = math.sqrt(ev.contact_area_var)
+        assert 0.0 < se < 0.1 * expected
+        assert abs(ev.contact_area - expected) < 4.0 * se, (d1, ev.contact_area, expected, se)
+
+
+@pytest.mark.parametrize("law", ["paper", "mdr"])
+def test_contact_area_gradient_is_the_derivative(law):
+    """The area's gradient d a / d Delta against central differences (orientations follow the closure).
+
+    The area has a kink wherever a contact starts (its slope jumps by pi R cos(theta) N w), so the
+    step is small enough that no contact starts within it here."""
+    pop = Population.sample(R1, 20_000, seed=3)
+    d = np.array([15 * um, 3 * um, -2 * um])
+    ev = evaluate(pop, d, law=law)
+    for k in range(3):
+        h = np.zeros(3)
+        h[k] = 1e-12
+        fd = (evaluate(pop, d + h, law=law).contact_area - evaluate(pop, d - h, law=law).contact_area) / 2e-12
+        assert fd == pytest.approx(ev.contact_area_grad[k], rel=1e-5, abs=1e-6 * abs(ev.contact_area_grad[0]))
+    assert ev.contact_area_grad[0] > 0.0  # closing the gap adds area
+
+
+def test_contact_area_covariance_with_the_stress_is_that_of_the_samples():
+    """The covariance of the area and stress estimates equals the sample covariance of the per-asperity
+    area and force (snapshot), scaled as the stress: an independent computation."""
+    pop = Population.sample(R1, 5000, seed=8)
+    d = np.array([14 * um, 2 * um, 1 * um])
+    ev = evaluate(pop, d)
+    snap = snapshot(pop, d)
+    p = pop.params
+    theta, dn = snap["theta"], snap["delta_n"]
+    a = np.where(dn > 0.0, math.pi * pop.R * dn * np.cos(theta), 0.0)
+    scale = p.N * pop.weight
+    assert ev.contact_area == pytest.approx(scale * a.sum(), rel=1e-12)
+    var = np.var(a, ddof=1) * scale * scale * pop.n
+    assert ev.contact_area_var == pytest.approx(var, rel=1e-9)
+    for i in range(3):
+        cov = np.cov(a, snap["force"][:, i], ddof=1)[0, 1] * scale * scale * pop.n
+        assert ev.contact_area_cov[i] == pytest.approx(cov, rel=1e-9, abs=1e-12 * abs(cov) + 1e-30)

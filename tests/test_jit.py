@@ -106,3 +106,37 @@ def test_editing_a_callee_in_another_file_compiles_anew(tmp_path):
     assert after["stress"][0] == 2.0 * before["stress"][0] > 0.0
     # the wider height margin of reach() reaches asperities that the bound of before excluded
     assert after["n_active"] > before["n_active"]
+
+
+def test_a_first_compile_says_so_once_per_group_on_a_terminal():
+    import io
+
+    from numba.core import event
+
+    class Event:
+        def __init__(self, f):
+            self.data = {"dispatcher": type("D", (), {"py_func": f})()}
+
+    def fake(module, qualname):
+        def f():
+            pass
+        f.__module__, f.__qualname__ = module, qualname
+        return f
+
+    out = io.StringIO()
+    notice = jit.CompileNotice(stream=out, isatty=lambda: True)
+    for module, name in (("asperity_sim.kernels.history", "slot_pass__mdr_0123456789ab"),
+                         ("asperity_sim.kernels.commit", "commit_slots__mdr_0123456789ab"),
+                         ("asperity_sim.sampling.draws", "inverse_cdfs__0123456789ab"),
+                         ("asperity_sim.kernels.history", "slot_pass__test_gain_0123456789ab"),
+                         ("numpy_user_module", "other__0123456789ab")):
+        notice.on_start(Event(fake(module, name)))
+    lines = out.getvalue().splitlines()
+    assert [line.split(" (")[0] for line in lines] == [
+        "asperity_sim: compiling the mdr law's kernels", "asperity_sim: compiling the shared kernels",
+        "asperity_sim: compiling the test_gain law's kernels"]
+    quiet = io.StringIO()
+    silent = jit.CompileNotice(stream=quiet, isatty=lambda: False)
+    silent.on_start(Event(fake("asperity_sim.kernels.history", "slot_pass__mdr_0123456789ab")))
+    assert quiet.getvalue() == ""
+    assert isinstance(jit.NOTICE, event.Listener)

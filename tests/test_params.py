@@ -12,9 +12,9 @@ from asperity_sim.params import InterfaceParams
 
 # A valid, generic parameter set (SI) used as the base for single-field changes.
 BASE = dict(N=1.0e8, alpha=2.5, beta=2.0e-6, R_m=40e-6, R_sigma=5e-6, mu=0.6, G=30e9, nu=0.25,
-            e=0.5, r_o=1e-6, b=0.1, c=0.05, d=-0.05)
+            e=0.5, r_o=1e-6, b=0.1, c=0.05, d=-0.05, summit_offset=0.5e-6, interaction=0.5)
 
-ALL_FIELDS = {"N", "alpha", "beta", "R_m", "R_sigma", "e", "r_o", "mu", "G", "nu", "b", "c", "d"}
+ALL_FIELDS = {"N", "alpha", "beta", "R_m", "R_sigma", "e", "r_o", "mu", "G", "nu", "b", "c", "d", "summit_offset", "interaction"}
 
 
 def make(**changes):
@@ -125,9 +125,9 @@ def test_field_set_and_units():
     assert {f.name for f in dataclasses.fields(InterfaceParams)} == ALL_FIELDS
     units = InterfaceParams.units()
     assert units["N"] == "m-2" and units["G"] == "Pa"
-    for f in ("beta", "R_m", "R_sigma", "r_o"):
+    for f in ("beta", "R_m", "R_sigma", "r_o", "summit_offset"):
         assert units[f] == "m"
-    for f in ("alpha", "e", "mu", "nu", "b", "c", "d"):
+    for f in ("alpha", "e", "mu", "nu", "b", "c", "d", "interaction"):
         assert units[f] == "1"
     assert set(InterfaceParams.long_names()) == ALL_FIELDS
 

@@ -190,7 +190,7 @@ def test_flag_variables_are_consistent(runs, which):
 def test_parameter_attributes_carry_spec_units(runs, which):
     ds = runs[which]
     spec_units = {"N": "m-2", "alpha": "1", "beta": "m", "R_m": "m", "R_sigma": "m", "mu": "1", "G": "Pa",
-                  "nu": "1", "e": "1", "r_o": "m", "b": "1", "c": "1", "d": "1"}
+                  "nu": "1", "e": "1", "r_o": "m", "b": "1", "c": "1", "d": "1", "summit_offset": "m", "interaction": "1"}
     assert set(InterfaceParams.units()) == set(spec_units)
     for name, unit in spec_units.items():
         got = ds.attrs[f"param_{name}_units"]

@@ -66,7 +66,7 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
     for i in range(m):
         if live[i]:
             code, work, stored, diss, events = commit_law(dn[i], dds[i], ddt[i], dn_c[b0 + i], 0.0, R[i], consts,
-                                                          arrays, b0 + i, False, scratch)
+                                                          arrays, b0 + i, m < 0, scratch)  # False, run time
             res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
 
 
@@ -187,6 +187,9 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, _ = closure_and_slope(r_o, d1)
     m = new_slots.size
+    # True as a run-time bool: with literal True here and False in the committed contacts' commit, numba would
+    # compile the law's commit twice (once per argument type)
+    fresh = m >= 0
     n_chunks = (m + CHUNK - 1) // CHUNK
     for ic in numba.prange(n_chunks):
         acc = np.zeros(N_COMMIT)
@@ -202,7 +205,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
             dnc = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
             dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
             _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
-            new, work, stored, diss, events = commit_law(dn, dds, ddt, dnc, dn_ref, R[j], consts, arrays, sl, True,
+            new, work, stored, diss, events = commit_law(dn, dds, ddt, dnc, dn_ref, R[j], consts, arrays, sl, fresh,
                                                          scratch)
             acc[C_WORK] += work
             acc[C_STORED] += stored

@@ -38,6 +38,10 @@ from .layout import (
     G_TH1,
     G_U,
     G_X,
+    I_A,
+    I_AA,
+    I_AF,
+    I_AT,
     I_F,
     I_FF,
     I_NC,
@@ -45,6 +49,8 @@ from .layout import (
     I_NS,
     I_T,
     I_TH,
+    V_A,
+    V_AT,
     V_G,
     V_NC,
     V_NP,
@@ -95,9 +101,22 @@ def global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1):
 
 
 @kernel(inline="always", error_model="numpy")
-def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
-    """Add one contact's global force, force products, tangent and counts to ``acc``."""
+def contact_area(R_j, dn, ct, st, cp, sp, ds, th1):
+    """(a, da/dDelta_1, da/dDelta_2, da/dDelta_3): the Hertz contact area projected on the nominal plane,
+    a = pi R delta_n cos(theta) [m²] (a² = R delta_n, SPEC §5), and its gradient [m].
+
+    d delta_n / d Delta = n + delta_s theta_1 e_1 and d cos(theta) / d Delta = -sin(theta) theta_1 e_1
+    (module docstring); ``ds`` = delta_s, ``th1`` = d theta / d Delta_1 (0 for a frozen angle).
+    """
+    c = math.pi * R_j
+    return (c * dn * ct, c * (ct * (ct + ds * th1) - dn * st * th1), c * ct * st * cp, c * ct * st * sp)
+
+
+@kernel(inline="always", error_model="numpy")
+def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1, dn, R_j):
+    """Add one contact's global force, force products, tangent, counts and contact area to ``acc``."""
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds_tot, rho, th1)
+    a, a0, a1, a2 = contact_area(R_j, dn, ct, st, cp, sp, ds_tot, th1)
     code = out[12]
     acc[0] += g0
     acc[1] += g1
@@ -122,6 +141,14 @@ def accumulate(acc, ct, st, cp, sp, out, ds_tot, rho, th1):
         acc[19] += 1.0
     elif code == 2.0:
         acc[21] += 1.0
+    acc[I_A] += a
+    acc[I_AA] += a * a
+    acc[I_AF] += a * g0
+    acc[I_AF + 1] += a * g1
+    acc[I_AF + 2] += a * g2
+    acc[I_AT] += a0
+    acc[I_AT + 1] += a1
+    acc[I_AT + 2] += a2
 
 
 @kernel(inline="always")
@@ -206,9 +233,9 @@ def slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e):
 
 
 @kernel(inline="always", error_model="numpy")
-def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8):
-    """Column i of ``vals``: global force, tangent, counts and angle of one asperity; zeros out of contact
-    (selects, so that the loop stays vectorised)."""
+def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8, a, a0, a1, a2):
+    """Column i of ``vals``: global force, tangent, counts, angle and contact area (with its gradient) of
+    one asperity; zeros out of contact (selects, so that the loop stays vectorised)."""
     vals[V_G * BLOCK + i] = g0 if touch else 0.0
     vals[(V_G + 1) * BLOCK + i] = g1 if touch else 0.0
     vals[(V_G + 2) * BLOCK + i] = g2 if touch else 0.0
@@ -225,6 +252,10 @@ def store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T
     vals[V_NS * BLOCK + i] = 1.0 if touch & (code == 3.0) else 0.0
     vals[V_NP * BLOCK + i] = 1.0 if touch & (code == 2.0) else 0.0
     vals[V_TH * BLOCK + i] = th if touch else 0.0
+    vals[V_A * BLOCK + i] = a if touch else 0.0
+    vals[V_AT * BLOCK + i] = a0 if touch else 0.0
+    vals[(V_AT + 1) * BLOCK + i] = a1 if touch else 0.0
+    vals[(V_AT + 2) * BLOCK + i] = a2 if touch else 0.0
 
 
 @kernel(inline="always", error_model="numpy")
@@ -236,7 +267,9 @@ def slot_values(vals, i, geo, out):
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(
         geo[G_CT, i], geo[G_ST, i], geo[G_CP, i], geo[G_SP, i], o, geo[G_DS, i], geo[G_RHO, i], geo[G_TH1, i])
     code = out[12, i]
-    store_values(vals, i, touch, code, geo[G_TH, i], g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
+    a, a0, a1, a2 = contact_area(geo[G_R, i], geo[G_DN, i], geo[G_CT, i], geo[G_ST, i], geo[G_CP, i], geo[G_SP, i],
+                                 geo[G_DS, i], geo[G_TH1, i])
+    store_values(vals, i, touch, code, geo[G_TH, i], g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8, a, a0, a1, a2)
 
 
 @kernel(inline="always")
@@ -247,6 +280,8 @@ def add_values(vals, m, acc):
     T0, T1, T2, T3, T4 = acc[I_T], acc[I_T + 1], acc[I_T + 2], acc[I_T + 3], acc[I_T + 4]
     T5, T6, T7, T8 = acc[I_T + 5], acc[I_T + 6], acc[I_T + 7], acc[I_T + 8]
     n_c, n_s, n_p, th_sum = acc[I_NC], acc[I_NS], acc[I_NP], acc[I_TH]
+    A, AA, AF0, AF1, AF2 = acc[I_A], acc[I_AA], acc[I_AF], acc[I_AF + 1], acc[I_AF + 2]
+    AT0, AT1, AT2 = acc[I_AT], acc[I_AT + 1], acc[I_AT + 2]
     for i in range(m):
         g0, g1, g2 = vals[V_G * BLOCK + i], vals[(V_G + 1) * BLOCK + i], vals[(V_G + 2) * BLOCK + i]
         F0 += g0
@@ -271,8 +306,19 @@ def add_values(vals, m, acc):
         n_s += vals[V_NS * BLOCK + i]
         n_p += vals[V_NP * BLOCK + i]
         th_sum += vals[V_TH * BLOCK + i]
+        a = vals[V_A * BLOCK + i]
+        A += a
+        AA += a * a
+        AF0 += a * g0
+        AF1 += a * g1
+        AF2 += a * g2
+        AT0 += vals[V_AT * BLOCK + i]
+        AT1 += vals[(V_AT + 1) * BLOCK + i]
+        AT2 += vals[(V_AT + 2) * BLOCK + i]
     acc[I_F], acc[I_F + 1], acc[I_F + 2] = F0, F1, F2
     acc[I_FF], acc[I_FF + 1], acc[I_FF + 2], acc[I_FF + 3], acc[I_FF + 4], acc[I_FF + 5] = P00, P11, P22, P01, P02, P12
     acc[I_T], acc[I_T + 1], acc[I_T + 2], acc[I_T + 3], acc[I_T + 4] = T0, T1, T2, T3, T4
     acc[I_T + 5], acc[I_T + 6], acc[I_T + 7], acc[I_T + 8] = T5, T6, T7, T8
     acc[I_NC], acc[I_NS], acc[I_NP], acc[I_TH] = n_c, n_s, n_p, th_sum
+    acc[I_A], acc[I_AA], acc[I_AF], acc[I_AF + 1], acc[I_AF + 2] = A, AA, AF0, AF1, AF2
+    acc[I_AT], acc[I_AT + 1], acc[I_AT + 2] = AT0, AT1, AT2

@@ -20,6 +20,7 @@ or loaded from cache.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,10 @@ from .layout import (
     N_OUT,
     N_SLOT_GEO,
     O_COV,
+    O_AREA,
+    O_AREA_COV,
+    O_AREA_GRAD,
+    O_AREA_VAR,
     O_NA,
     O_NC,
     O_NP,
@@ -52,6 +57,7 @@ from .layout import (
     finish,
 )
 from .reach import bounds
+from . import interaction
 from .specialise import kernels
 from .state import ContactState
 
@@ -64,7 +70,12 @@ class Evaluation:
     covariance (3, 3) [Pa²] (Monte Carlo covariance of the stress estimate), tangent (3, 3)
     [Pa/m] (d sigma_i / d Delta_k), n_contact, n_slip and n_partial (asperity counts),
     mean_theta [rad] (mean orientation of the contacts; 0 when none), n_active (asperities
-    below the height bound, the most that can touch).
+    below the height bound, the most that can touch); contact_area [1] (real contact area
+    per unit nominal area: the Hertz areas pi R delta_n of the contacts, projected, N w sum),
+    contact_area_var [1] (the Monte Carlo variance of that estimate), contact_area_cov (3,) [Pa]
+    (its covariance with the stress estimate) and contact_area_grad (3,) [1/m] (d area / d Delta);
+    delta_contact (3,) [m] the displacement the contacts see under elastic interaction
+    (:mod:`asperity_sim.kernels.interaction`; None without it).
     """
 
     delta: np.ndarray
@@ -77,6 +88,15 @@ class Evaluation:
     n_partial: int
     mean_theta: float
     n_active: int
+    contact_area: float = 0.0
+    contact_area_var: float = 0.0
+    contact_area_cov: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    contact_area_grad: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    delta_contact: np.ndarray | None = None  # the displacement the contacts see, when it differs (interaction)
+
+    def at_contacts(self) -> np.ndarray:
+        """The displacement the contacts see [m]: ``delta`` unless elastic interaction shifts it."""
+        return self.delta if self.delta_contact is None else self.delta_contact
 
 
 class Workspace:
@@ -104,6 +124,7 @@ class Workspace:
         self.box_pop = None  # the population the listed asperities belong to; None: no valid list
         self.n_box, self.tan_box = 0, 0.0
         self.trials_by_index = [0, 0, 0]  # trials that tested every asperity, built the list, used it
+        self.interaction_offset = 0.0  # Delta_c,1 - Delta_1 of the last evaluation under elastic interaction
 
     @staticmethod
     def trial_key(delta, state):
@@ -200,8 +221,20 @@ def evaluate_unchecked(pop, d, state, workspace) -> Evaluation:
     """:func:`evaluate` on arguments already checked (for a solver that calls it many times).
 
     ``d`` a finite float array (3,), ``state`` a :class:`~asperity_sim.kernels.state.ContactState`
-    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.
+    of ``pop``, ``workspace`` a :class:`Workspace` for ``pop``.  With elastic interaction
+    (``params.interaction`` > 0) the contacts' displacement is solved for first
+    (:func:`~asperity_sim.kernels.interaction.solve`, from the workspace's last offset).
     """
+    k = interaction.kappa(pop.params)
+    if k == 0.0:
+        return at_contacts(pop, d, state, workspace)
+    ev = interaction.solve(lambda c: at_contacts(pop, c, state, workspace), d, k, workspace.interaction_offset)
+    workspace.interaction_offset = float(ev.delta_contact[0] - d[0])
+    return ev
+
+
+def at_contacts(pop, d, state, workspace) -> Evaluation:
+    """The sums of the kernels with the contacts at the displacement ``d`` (no interaction)."""
     law = state.law
     tb = EMPTY if state.theta_birth is None else state.theta_birth
     out = np.empty(N_OUT)
@@ -296,6 +329,14 @@ class Steps:
         return self.rows[:, O_TH]
 
     @property
+    def contact_area(self):
+        return self.rows[:, O_AREA]
+
+    @property
+    def contact_area_stderr(self):
+        return np.sqrt(np.maximum(self.rows[:, O_AREA_VAR], 0.0))
+
+    @property
     def finite(self):
         return np.isfinite(self.rows[:, :O_SE]).all(axis=1)  # stress, tangent, covariance
 
@@ -310,8 +351,10 @@ def evaluate_steps(pop, deltas, workspace, law="paper") -> Steps:
     One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
     meant for small populations (:func:`serial_fits`), where the per-call overhead of
     :func:`evaluate` exceeds the kernel time.  ``deltas`` finite and C-contiguous,
-    ``workspace`` a :class:`Workspace` for ``pop``.
+    ``workspace`` a :class:`Workspace` for ``pop``; no elastic interaction (``params.interaction`` 0).
     """
+    if pop.params.interaction != 0.0:
+        raise ValueError("evaluate_steps has no elastic interaction: evaluate each displacement (interaction > 0)")
     lw = laws.get(law)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
@@ -333,6 +376,10 @@ def evaluation_from(d, out) -> Evaluation:
         n_partial=int(out[O_NP]),
         mean_theta=float(out[O_TH]),
         n_active=int(out[O_NA]),
+        contact_area=float(out[O_AREA]),
+        contact_area_var=float(out[O_AREA_VAR]),
+        contact_area_cov=out[O_AREA_COV:O_AREA_COV + 3],
+        contact_area_grad=out[O_AREA_GRAD:O_AREA_GRAD + 3],
     )
 
 

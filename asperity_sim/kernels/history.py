@@ -102,7 +102,7 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
                     continue
                 rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
                 accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False),
-                           ds, rho, th1)
+                           ds, rho, th1, dn, R[j])
                 acc[I_TH] += th
             partial[ic, :] = acc
             continue
@@ -202,7 +202,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
             rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
             accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c, dn_ref, R[j], consts, arrays, 0, True), ds, rho,
-                       th1)
+                       th1, dn, R[j])
             acc[I_TH] += th
         if index == 1:
             n_listed[ic] = m

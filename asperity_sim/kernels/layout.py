@@ -4,7 +4,8 @@ Owns the facts every kernel shares: the chunk and block sizes, the layout of one
 partial sums (``I_*``), of the flat result of an evaluation (``O_*``), of the per-asperity
 values of a block (``V_*``), of a block's inputs (``X_*``) and slot geometry (``G_*``), of a
 commit's sums (``C_*``), the empty arrays passed for "none", :func:`finish` (stress, tangent,
-covariance and standard errors from the partial rows, summed in order so that a result does
+covariance and standard errors, and the contact area fraction with its variance, covariance
+with the stress and gradient, from the partial rows, summed in order so that a result does
 not depend on the number of threads) and :func:`chunk_stride` (the order chunks go to threads).
 """
 
@@ -19,9 +20,10 @@ from ..jit import kernel
 CHUNK = 2048
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
-# tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count
-I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP = 0, 3, 9, 18, 19, 20, 21
-N_ACC = 22
+# tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count,
+# contact area a, a², a f_i (3) and d a / d Delta_k (3)
+I_F, I_FF, I_T, I_NC, I_NS, I_TH, I_NP, I_A, I_AA, I_AF, I_AT = 0, 3, 9, 18, 19, 20, 21, 22, 23, 24, 27
+N_ACC = 30
 _FF_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (i, j) of the products f_i f_j, in their order
 
 
@@ -74,19 +76,29 @@ def finish(partial, n_chunks, n, scale, out):
     out[O_NS] = round(s[I_NS])
     out[O_NP] = round(s[I_NP])
     out[O_TH] = s[I_TH] / n_contact if n_contact else 0.0
+    # contact area fraction N w sum a, the variance of its estimate, its covariance with the stress
+    # estimate and its gradient d / dDelta, as for the stress
+    out[O_AREA] = scale * s[I_A]
+    out[O_AREA_VAR] = (s[I_AA] - s[I_A] * s[I_A] / n) / (n - 1) * scale * scale * n if n > 1 else 0.0
+    for i in range(3):
+        out[O_AREA_COV + i] = ((s[I_AF + i] - s[I_A] * s[I_F + i] / n) / (n - 1) * scale * scale * n
+                               if n > 1 else 0.0)
+        out[O_AREA_GRAD + i] = scale * s[I_AT + i]
 
 
 
 # layout of the flat result of :func:`finish` (one float array per evaluation)
 O_STRESS, O_TANGENT, O_COV, O_SE, O_NC, O_NS, O_NP, O_TH, O_NA = 0, 3, 12, 21, 24, 25, 26, 27, 28
-N_OUT = 29
+O_AREA, O_AREA_VAR, O_AREA_COV, O_AREA_GRAD = 29, 30, 31, 34
+N_OUT = 37
 
 
 # per-asperity values of the vectorised follow loop, one row of BLOCK each: global force (3), tangent
-# (9, row-major), contact, full slip, partial slip (0 or 1) and theta of a contact
-V_G, V_T, V_NC, V_NS, V_NP, V_TH = 0, 3, 12, 13, 14, 15
-N_VAL = 16
-BLOCK = 256  # asperities per block (16 x 256 doubles of values = 32 KiB)
+# (9, row-major), contact, full slip, partial slip (0 or 1), theta of a contact, its contact area and
+# the area's gradient (3)
+V_G, V_T, V_NC, V_NS, V_NP, V_TH, V_A, V_AT = 0, 3, 12, 13, 14, 15, 16, 17
+N_VAL = 20
+BLOCK = 256  # asperities per block (20 x 256 doubles of values = 40 KiB, in L1)
 # inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
 X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
 N_IN = 5

@@ -21,6 +21,7 @@ from .contact import (
     accumulate,
     add_values,
     contact_angle,
+    contact_area,
     follow_angle,
     follow_slope,
     global_force_tangent,
@@ -61,7 +62,8 @@ def values_follow(vals, i, x, cp, sp, R_j, u_j, d2, d3, closure, dc, k_e, consts
     out = local(dn if touch else 1.0, ds, dt, R_j, consts)
     code = out[12]
     g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8 = global_force_tangent(ct, st, cp, sp, out, ds, dn, th1)
-    store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8)
+    a, a0, a1, a2 = contact_area(R_j, dn, ct, st, cp, sp, ds, th1)
+    store_values(vals, i, touch, code, th, g0, g1, g2, T0, T1, T2, T3, T4, T5, T6, T7, T8, a, a0, a1, a2)
 
 
 @template(error_model="numpy")
@@ -70,9 +72,11 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
 
     Per block of BLOCK asperities: unless the whole block lies below the closure, a loop that
     LLVM vectorises marks the asperities :func:`may_touch_follow` keeps (no trigonometry, no
-    branch), a scalar pass lists them and copies their inputs, contiguous, into ``inp``;
-    :func:`values_follow` fills ``vals`` in a loop that LLVM vectorises; the columns are
-    summed in order (no fastmath: the same bits however LLVM vectorised).
+    branch) and a scalar pass lists them; their inputs are copied, contiguous, into ``inp`` and
+    :func:`values_follow` fills ``vals`` in a loop that LLVM vectorises; the columns are summed in
+    order (no fastmath: the same bits however LLVM vectorised).  One call site of
+    :func:`values_follow`, for both kinds of block: numba inlines a copy of it per call site, and
+    the copy is most of the kernel's compile time.
     """
     lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
     vals = np.empty(N_VAL * BLOCK)
@@ -85,8 +89,7 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
         if d1 > r[b1 - 1]:  # the whole block lies below the closure: every asperity may touch
             m = b1 - b0
             for i in range(m):
-                values_follow(vals, i, d1 - r[b0 + i], cos_phi[b0 + i], sin_phi[b0 + i], R[b0 + i], u[b0 + i],
-                              d2, d3, closure, dc, k_e, consts)
+                at[i] = b0 + i
         else:
             for j in range(b0, b1):  # vectorised: which asperities may touch
                 cp, sp = cos_phi[j], sin_phi[j]
@@ -97,16 +100,16 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
             for i in range(b1 - b0):  # their positions, contiguous
                 at[m] = b0 + i
                 m += kept[i]
-            for i in range(m):  # their inputs, contiguous
-                j = at[i]
-                inp[X_X * BLOCK + i] = d1 - r[j]
-                inp[X_CP * BLOCK + i] = cos_phi[j]
-                inp[X_SP * BLOCK + i] = sin_phi[j]
-                inp[X_R * BLOCK + i] = R[j]
-                inp[X_U * BLOCK + i] = u[j]
-            for i in range(m):
-                values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
-                              inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
+        for i in range(m):  # their inputs, contiguous
+            j = at[i]
+            inp[X_X * BLOCK + i] = d1 - r[j]
+            inp[X_CP * BLOCK + i] = cos_phi[j]
+            inp[X_SP * BLOCK + i] = sin_phi[j]
+            inp[X_R * BLOCK + i] = R[j]
+            inp[X_U * BLOCK + i] = u[j]
+        for i in range(m):
+            values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
+                          inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
         add_values(vals, m, acc)
     partial[ic, :] = acc
 
@@ -126,7 +129,7 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
         dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
         if dn <= 0.0:
             continue
-        accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1)
+        accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1, dn, R[j])
         acc[I_TH] += th
     partial[ic, :] = acc
 

@@ -32,6 +32,18 @@ STEP_VARIABLES = {
     "n_partial": Var(("step",), "i8", "1", "number of sampled asperities in partial slip (in contact, sheared, not in full slip)"),
     "theta_am": Var(("step",), "f8", "rad", "average asperity orientation extent theta_am (Eq. 29)"),
     "mean_theta": Var(("step",), "f8", "rad", "mean meridional orientation theta of the asperities in contact"),
+    "contact_area_fraction": Var(("step",), "f8", "1",
+                                 "real contact area per unit nominal area: the Hertz areas pi R delta_n of the "
+                                 "contacts projected on the nominal plane (Monte Carlo estimate)"),
+    "contact_area_fraction_stderr": Var(("step",), "f8", "1",
+                                        "Monte Carlo standard error of the contact area fraction (under stress "
+                                        "control with the error of the solved displacement propagated)"),
+    "mean_gap": Var(("step",), "f8", "m",
+                    "mean gap: distance from the flat to the mean plane of the rough surface, mean_plane_depth - "
+                    "Delta_1 (the surface between contacts does not deform)"),
+    "mean_gap_stderr": Var(("step",), "f8", "m",
+                           "Monte Carlo standard error of the mean gap (that of Delta_1; 0 where displacement "
+                           "controlled)"),
     "stage": Var(("step",), "i4", "1", "stage of the load path (0: initial state)"),
     "control": Var(("step", "axis"), "i1", "1", "control of each component (0: displacement, 1: stress)"),
     "iterations": Var(("step",), "i4", "1", "Newton iterations of the increment"),

@@ -36,6 +36,7 @@ from .solver import solve_increment
 from .stepping import (
     TRUST,
     Position,
+    area_stderr,
     cubic_predictor,
     effective_stiffness,
     extrapolated_predictor,
@@ -162,7 +163,7 @@ class Run:
         return evaluate_unchecked(self.pop, check_delta(delta), self.state, self.ws)
 
     def take_snapshot(self, step):
-        self.rec.add_snapshot(step, self.state.snapshot(self.delta))
+        self.rec.add_snapshot(step, self.state.snapshot(self.ev.at_contacts()))
 
     def save_checkpoint(self, target, every, wall):
         run_checkpoint.save(self, target, every=every, wall_time=wall)
@@ -206,7 +207,10 @@ class Run:
                    displacement_stderr=0.0, tangent=steps.tangent[:m], n_contact=steps.n_contact[:m],
                    n_slip=steps.n_slip[:m], n_partial=steps.n_partial[:m],
                    theta_am=[_theta_am(params, float(closure(params, d1))) for d1 in deltas[:m, 0]],
-                   mean_theta=steps.mean_theta[:m], stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
+                   mean_theta=steps.mean_theta[:m], contact_area_fraction=steps.contact_area[:m],
+                   contact_area_fraction_stderr=steps.contact_area_stderr[:m],
+                   mean_gap=params.mean_plane_depth - deltas[:m, 0], mean_gap_stderr=0.0,
+                   stage=i_stage, control=0, iterations=0, residual=0.0, cutbacks=0,
                    **self.domain_flags_of(rec.size, deltas[:m], steps.stress[:m]))
         # the loop's position after the last of them (the points before it feed the predictors), as the loop
         # would leave it: each point before an increment becomes the previous one in turn
@@ -257,7 +261,7 @@ class Run:
                 done_in_stage = rec.count("stage", i_stage)  # bounded: at most stage.budget increments
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
-                           and serial_fits(self.pop) and progress is None)
+                           and serial_fits(self.pop) and progress is None and params.interaction == 0.0)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
                     if batches and cuts == 0 and not (max_wall_time is not None
@@ -291,6 +295,9 @@ class Run:
                                  else extrapolated_predictor(guess, self.delta, pos, s, s_new, free))
                     # fresh contacts get springs that fit their overlap at the stage's end point
                     self.state.reference = np.where(free, self.delta, end)
+                    # under elastic interaction every increment's first evaluation starts from the offset of the
+                    # last converged one (so a resumed run repeats the same iterations)
+                    self.ws.interaction_offset = float(self.ev.at_contacts()[0] - self.ev.delta[0])
                     try:
                         result = solve_increment(self.evaluate_at, guess, free, target_stress, self.length, settings)
                     except Deadline:
@@ -310,8 +317,8 @@ class Run:
                     consistent = False
                     pos.advance(s, self.delta, slope)
                     ev = self.ev = result.evaluation
-                    self.delta = delta = ev.delta.copy()
-                    c = self.state.commit(delta, ev.n_active, self.ws)
+                    self.delta = ev.delta.copy()
+                    c = self.state.commit(ev.at_contacts(), ev.n_active, self.ws)
                     if c is not None:
                         e = self.energy
                         self.energy = {"external_work": e["external_work"] + c.work, "elastic_energy": c.stored,
@@ -399,6 +406,8 @@ def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, 
         tangent=ev.tangent,
         n_contact=ev.n_contact, n_slip=ev.n_slip, n_partial=ev.n_partial,
         theta_am=_theta_am(params, float(closure(params, ev.delta[0]))), mean_theta=ev.mean_theta,
+        contact_area_fraction=ev.contact_area, contact_area_fraction_stderr=area_stderr(ev, control),
+        mean_gap=params.mean_plane_depth - ev.delta[0], mean_gap_stderr=disp_se[0],
         stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
         cutbacks=cutbacks, **extra,
     )

@@ -18,7 +18,8 @@ The layout (format :data:`~asperity_sim.output.checkpoint.FORMAT`; n asperities,
 - ``pop_r``, ``pop_R``, ``pop_u``, ``pop_cos_phi``, ``pop_sin_phi``: the population (n,) (a
   population drawn with ``seed=None`` or passed in cannot be drawn again);
 - ``delta``: the committed displacement (3,) [m]; ``ev_*``: the last converged evaluation
-  (stress, standard errors, covariance, tangent, counts, mean angle), which the predictor reads;
+  (stress, standard errors, covariance, tangent, counts, mean angle, contact area with its
+  variance, covariance and gradient), which the predictor reads;
 - ``pos_*``: the loop position (:class:`~asperity_sim.solve.stepping.Position`);
 - ``state_*``: :meth:`ContactState.state_arrays <asperity_sim.kernels.state.ContactState.state_arrays>`;
 - ``energy_*``: running energy sums, event count and transitions (history laws);
@@ -134,12 +135,17 @@ def check_run_arrays(arrays, *, n: int, n_stages: int, birth: bool = False) -> N
     require(arrays, "pop_u", shape=(n,), dtype=f8, lo=0.0, hi=half_pi)
     for name in ("pop_cos_phi", "pop_sin_phi"):
         require(arrays, name, shape=(n,), dtype=f8, lo=-1.0, hi=1.0)
-    for name in ("delta", "ev_delta", "ev_stress", "ev_stderr", "pos_start_delta", "pos_start_stress"):
+    for name in ("delta", "ev_delta", "ev_delta_contact", "ev_stress", "ev_stderr", "pos_start_delta",
+                 "pos_start_stress"):
         require(arrays, name, shape=(3,), dtype=f8)
     for name in ("ev_covariance", "ev_tangent"):
         require(arrays, name, shape=(3, 3), dtype=f8)
     require(arrays, "ev_ints", shape=(4,), dtype=i8, lo=0, hi=n)
     require(arrays, "ev_mean_theta", shape=(1,), dtype=f8, lo=0.0, hi=half_pi)
+    require(arrays, "ev_area", shape=(8,), dtype=f8)  # area, its variance, covariance (3), gradient (3)
+    if not (arrays["ev_area"][0] >= 0.0 and arrays["ev_area"][1] >= 0.0):
+        raise CheckpointError(f"checkpoint {getattr(arrays, 'path', '<unknown>')!r}: array ev_area = "
+                              f"{arrays['ev_area'][:2].tolist()}... (valid range: contact area and its variance >= 0)")
     pos_i = require(arrays, "pos_i", shape=(2,), dtype=i8, lo=0)
     where = f"checkpoint {getattr(arrays, 'path', '<unknown>')!r}"
     if pos_i[0] > n_stages or pos_i[1] > 1:
@@ -177,10 +183,12 @@ def save(run, path, *, every, wall_time) -> None:
     pop, ev, pos = run.pop, run.ev, run.pos
     arrays = {"pop_r": pop.r, "pop_R": pop.R, "pop_u": pop.u, "pop_cos_phi": pop.cos_phi,
               "pop_sin_phi": pop.sin_phi, "delta": run.delta,
-              "ev_delta": ev.delta, "ev_stress": ev.stress, "ev_stderr": ev.stderr,
+              "ev_delta": ev.delta, "ev_delta_contact": ev.at_contacts(), "ev_stress": ev.stress, "ev_stderr": ev.stderr,
               "ev_covariance": ev.covariance, "ev_tangent": ev.tangent,
               "ev_ints": np.array([ev.n_contact, ev.n_slip, ev.n_partial, ev.n_active], dtype=np.int64),
               "ev_mean_theta": np.array([ev.mean_theta]),
+              "ev_area": np.concatenate([[ev.contact_area, ev.contact_area_var], ev.contact_area_cov,
+                                         ev.contact_area_grad]),
               "pos_i": np.array([pos.i_stage, int(pos.started)], dtype=np.int64),
               "pos_f": np.array([pos.s, pos.ds, pos.k_ref]),
               "pos_start_delta": pos.start_delta, "pos_start_stress": pos.start_stress,
@@ -261,7 +269,11 @@ def restore(saved: Saved, *, params, n_stages, law, policy, options, variables, 
         ev = Evaluation(delta=arrays["ev_delta"].copy(), stress=arrays["ev_stress"].copy(),
                         stderr=arrays["ev_stderr"].copy(), covariance=arrays["ev_covariance"].copy(),
                         tangent=arrays["ev_tangent"].copy(), n_contact=int(ints[0]), n_slip=int(ints[1]),
-                        n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]), n_active=int(ints[3]))
+                        n_partial=int(ints[2]), mean_theta=float(arrays["ev_mean_theta"][0]), n_active=int(ints[3]),
+                        contact_area=float(arrays["ev_area"][0]), contact_area_var=float(arrays["ev_area"][1]),
+                        contact_area_cov=arrays["ev_area"][2:5].copy(), contact_area_grad=arrays["ev_area"][5:8].copy(),
+                        delta_contact=(None if np.array_equal(arrays["ev_delta_contact"], arrays["ev_delta"])
+                                       else arrays["ev_delta_contact"].copy()))
         if law.history is not None:
             ef = arrays["energy_f"]
             energy = {"external_work": float(ef[0]), "elastic_energy": float(ef[1]), "dissipation": float(ef[2]),

@@ -135,6 +135,24 @@ def solution_stderr(ev, free):
     return np.sqrt(np.maximum(var_s, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
 
 
+def area_stderr(ev, free) -> float:
+    """Standard error of the recorded contact area fraction under mixed control [1].
+
+    As :func:`solution_stderr`: the Monte Carlo error of the stress estimate moves the solved
+    displacements by dDelta_f = -T_ff^-1 dsigma_f, which moves the area by g . dDelta_f, g the
+    area's gradient; the area's own error is correlated with dsigma.  Var = Var(a) - 2 h . Cov(a,
+    sigma_f) + h C_ff h, h = T_ff^-T g_f (delta method, first order).
+    """
+    var = ev.contact_area_var
+    free = np.asarray(free, dtype=bool)
+    if free.any():
+        A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
+        h = A.T @ ev.contact_area_grad[free]
+        C = ev.covariance[np.ix_(free, free)]
+        var = var - 2.0 * float(h @ ev.contact_area_cov[free]) + float(h @ C @ h)
+    return sqrt_nonneg(var)
+
+
 def tangent_predictor(ev, delta, target_delta, target_stress, free, limit=math.inf):
     """Tangent predictor for the free components from the last converged state.
 

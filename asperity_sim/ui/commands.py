@@ -1,4 +1,4 @@
-"""The commands of ``asperity-sim``: run, plot, info, presets, sweep, fit, envelope, cyclic.
+"""The commands of ``asperity-sim``: run, plot, info, presets, sweep, fit, envelope, cyclic, warmup.
 """
 
 from __future__ import annotations
@@ -150,6 +150,15 @@ def cmd_presets(args) -> int:
     return 0
 
 
+def cmd_warmup(args) -> int:
+    from ..solve.warmup import warmup
+
+    t0 = time.perf_counter()
+    seconds = warmup(args.law, report=lambda text: print(f"{PROG}: {text}", flush=True))
+    print(f"kernels ready for {', '.join(seconds)} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
 # -- sweep ---------------------------------------------------------------------------
 
 def cmd_sweep(args) -> int:
@@ -188,6 +197,18 @@ def cmd_sweep(args) -> int:
 
 # -- fit -----------------------------------------------------------------------------
 
+def _cutoff(text):
+    """--cutoff: None, "auto" or a length [m] > 0."""
+    from ..units import parse_quantity
+
+    if text is None or text.strip().lower() == "auto":
+        return None if text is None else "auto"
+    value = parse_quantity(text, "m", "--cutoff")
+    if not value > 0.0:
+        raise ValueError(f"--cutoff = {text!r} is out of range (valid: a length > 0, e.g. \"50 nm\", or auto)")
+    return value
+
+
 def _cmd_fit(args) -> int:
     from ..analysis import surfaces
     from ..runs.scene import load_scene
@@ -209,15 +230,25 @@ def _cmd_fit(args) -> int:
         size = size * 2 if len(size) == 1 else size
     min_prom = parse_quantity(args.min_prominence, "m", "--min-prominence")
     closure = None if args.closure is None else parse_quantity(args.closure, "m", "--closure")
+    cutoff = _cutoff(args.cutoff)
     base, label = args.preset, None
     if args.scene is not None:
         base, label = load_scene(args.scene).params, f"scene {args.scene}"
     tops = [surfaces.read(p, physical_sizes=size, unit=args.unit) for p in args.surfaces]
     t0 = time.perf_counter()
-    res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
-                       bootstrap=args.bootstrap, seed=args.seed, base_label=label, closure=closure)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", surfaces.SurfaceScaleWarning)
+        res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
+                           bootstrap=args.bootstrap, seed=args.seed, base_label=label, cutoff=cutoff,
+                           closure=closure)
+    for w in caught:  # the scale warnings one line each; others go on as Python would show them
+        if issubclass(w.category, surfaces.SurfaceScaleWarning):
+            print(f"{PROG}: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     seconds = time.perf_counter() - t0
-    command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}"
+    command = f"{PROG} fit {' '.join(str(p) for p in args.surfaces)} -o {out}" + \
+        (f" --cutoff {args.cutoff!r}" if args.cutoff is not None else "")
     text = surfaces.scene_text(res, closure=closure, command=command)
     from ..runs.scene import scene_from_dict, tomllib
 
@@ -237,6 +268,8 @@ def _cmd_fit(args) -> int:
         print("  " + scene_comments(res.pair)[1][2:])
         rest = tuple(n for n in rest if n != "e")
     print(f"  not identified ({', '.join(rest)}): from {res.source_of_rest}")
+    for line in res.scale.lines():
+        print(f"  {line}")
     if args.plot is not None:
         import matplotlib.pyplot as plt
 
@@ -320,5 +353,5 @@ def cmd_cyclic(args) -> int:
 
 
 COMMANDS = {"run": cmd_run, "plot": cmd_plot, "info": cmd_info, "presets": cmd_presets, "sweep": cmd_sweep,
-            "fit": _cmd_fit, "envelope": cmd_envelope, "cyclic": cmd_cyclic}
+            "fit": _cmd_fit, "envelope": cmd_envelope, "cyclic": cmd_cyclic, "warmup": cmd_warmup}
 

@@ -79,6 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
                                     "derived quantity with its unit.")
     pr.add_argument("names", nargs="*", metavar="PRESET", help="only these presets (R1, S1, R2, S2; default: all)")
 
+    w = sub.add_parser("warmup", parents=[common], help="compile the kernels ahead (first run only)",
+                       description="Compile the numba kernels a run of each law needs and write them to numba's "
+                                   "cache, so that the first run does not wait for them (a job script or a Dask "
+                                   "worker's start-up calls this).")
+    w.add_argument("--law", action="append", choices=tuple(laws.LAWS), default=None,
+                   help="only this law (repeatable; default: every registered law)")
+
     s = sub.add_parser("sweep", parents=[common], help="run a grid of parameters and replicas (on Dask)",
                        description="Run the grid and replicas of SWEEP.toml and write one netCDF file.")
     s.add_argument("sweep", type=Path, metavar="SWEEP.toml")
@@ -111,6 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--window", type=_int_at_least(1), default=1, metavar="K",
                    help="a summit is the highest point of the (2K+1)² pixel square around it (default 1: the 8 "
                         "neighbours; raise it against instrument noise)")
+    f.add_argument("--cutoff", metavar="LENGTH|auto",
+                   help="fit at this scale: short-wavelength cutoff of the Gaussian S-filter applied to the heights "
+                        "before the summits are found, e.g. \"50 nm\", or auto (the smallest cutoff at which summit "
+                        "density and curvature stop depending on it); default: the raw map")
     f.add_argument("--closure", metavar="LENGTH", help="largest Delta_1 of the scene's path, e.g. \"2 um\" "
                                                         "(default: depth reached by 10 %% of the summits)")
     f.add_argument("--bootstrap", type=_int_at_least(10), default=200, help="bootstrap resamples (default 200)")

@@ -1,23 +1,27 @@
 """Fitting the model to a surface: InterfaceParams and populations from measured summits.
 
 Owns :func:`fit` (heights, radii and their densities from the summits of a composite surface,
-by moments), :func:`empirical_population` (a population resampled from the measured summits)
-and the scene file written for a fit.
+by moments, at the scale of a chosen or automatic cutoff, with its scale diagnosis and warnings),
+:func:`empirical_population` (a population resampled from the measured summits) and the scene
+file written for a fit.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import special, stats
 
 from ...checks import check_choice, check_int, check_real
-from ...errors import SurfaceError
+from ...errors import SurfaceError, SurfaceScaleWarning
 from ...params import InterfaceParams
+from .diagnosis import ScaleReport, scale_report
+from .scale import auto_cutoff, height_step, s_filter
 from .summits import IDENTIFIED, MIN_SUMMITS, NOT_IDENTIFIED, Summits, find_summits
-from .topography import Surface, composite
+from .topography import Surface, as_surface, composite
 
 # -- fit ----------------------------------------------------------------------------------
 
@@ -44,7 +48,9 @@ class FitResult:
                independent as SPEC §2 assumes} [1]
     summits : Summits
     identified, not_identified : field names; source_of_rest : e.g. "preset R1"
-    surface : the composite Surface;  settings : detrend, min_prominence, bootstrap size, seed
+    surface : the composite Surface at the fit's scale (filtered at the cutoff, if any)
+    settings : detrend, min_prominence, window, cutoff, bootstrap size, seed
+    scale : ScaleReport, at which scale the fit describes the surface, and its warnings
     pair : with two surfaces, :func:`.pair.pair_statistics` at the scene's closure (e and the contact
            slopes with their standard errors; e is then fitted), else None
     """
@@ -58,6 +64,7 @@ class FitResult:
     source_of_rest: str = "preset R1"
     surface: Surface | None = None
     settings: dict = field(default_factory=dict)
+    scale: ScaleReport | None = None
     pair: dict | None = None
 
     def source_of(self, name: str) -> str:
@@ -68,7 +75,8 @@ class FitResult:
                "alpha": "gamma fit of summit depths below the highest summit (method of moments)",
                "beta": "gamma fit of summit depths below the highest summit (method of moments)",
                "R_m": "mean of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
-               "R_sigma": "s.d. of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2"}
+               "R_sigma": "s.d. of summit radii 1/kappa, kappa = -(h_xx + h_yy)/2",
+               "summit_offset": "mean summit height above the mean height of the surface"}
         if name in how:
             from ...units import format_quantity
 
@@ -83,18 +91,46 @@ class FitResult:
         return f"not identified from topography: {self.source_of_rest}"
 
 
+def _scaled(surf, cutoff, window, min_prominence):
+    """(surface at the fit's scale, cutoff [m] or None, choice, note, ladder) for ``cutoff`` None, "auto" or a
+    length [m] (a number, or a string such as "50 nm")."""
+    if cutoff is None:
+        return surf, None, "none", "", ()
+    if isinstance(cutoff, str) and cutoff.strip().lower() == "auto":
+        c, ladder, note = auto_cutoff(surf, window, min_prominence)
+        return s_filter(surf, c), c, "auto", note, ladder
+    if isinstance(cutoff, str):
+        from ...units import parse_quantity
+
+        try:
+            cutoff = parse_quantity(cutoff, "m", "cutoff")
+        except ValueError as err:
+            raise SurfaceError(f"{err} (or auto)") from None
+    c = check_real("cutoff [m]", cutoff, 0.0, None, lo_open=True, error=SurfaceError)
+    note = "given: Gaussian S-filter (ISO 16610-61), 50 % transmission at the cutoff"
+    return s_filter(surf, c), c, "given", note, ()
+
+
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
         min_prominence: float = 0.0, window: int = 1, bootstrap: int = 200, seed: int = 0,
-        base_label: str | None = None, closure: float | None = None) -> FitResult:
-    """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed).
+        base_label: str | None = None, cutoff: float | str | None = None,
+        closure: float | None = None) -> FitResult:
+    """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed), and
+    summit_offset (the height of the summits' mean plane above the surface's) to its heights.
 
     topography, other : Surface, SurfaceTopography Topography or file name
     base : preset name or InterfaceParams giving the parameters topography does not identify
     base_label : where ``base`` came from, for the report (e.g. "scene my.toml")
     min_prominence [m], window [pixels] : summit definition (:func:`find_summits`)
+    cutoff : short-wavelength cutoff [m] of the Gaussian S-filter applied to the composite before
+        the summits are found (:func:`~asperity_sim.analysis.surfaces.scale.s_filter`), "auto"
+        (:func:`~asperity_sim.analysis.surfaces.scale.auto_cutoff`) or None (the raw map)
     bootstrap : resamples of the summits for the standard errors (>= 10)
     closure [m] : with two surfaces, the closure at which e and the contact slopes are measured (default:
         the scene's, :func:`default_closure`); e is then fitted (:mod:`.pair`)
+
+    The result's ``scale`` says at which scale the fit describes the surface; each threshold it
+    passes is also issued as a :class:`~asperity_sim.errors.SurfaceScaleWarning`.
     """
     from ... import presets
 
@@ -106,12 +142,14 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     else:
         raise SurfaceError(f"base = {base!r} is not a preset name or InterfaceParams")
     bootstrap = check_int("bootstrap", bootstrap, 10, error=SurfaceError)
-    surf = composite(topography, other, detrend_mode)
+    inputs = [as_surface(s) for s in (topography, other) if s is not None]
+    raw = composite(inputs[0], inputs[1] if len(inputs) > 1 else None, detrend_mode)
+    surf, cut, choice, note, ladder = _scaled(raw, cutoff, window, min_prominence)
     summits = find_summits(surf, min_prominence, window)
     if summits.n < MIN_SUMMITS:
         raise SurfaceError(f"{surf.source}: {summits.n} summits found, too few to fit "
-                           f"(valid range: at least {MIN_SUMMITS}; lower --min-prominence or --window, or use a "
-                           f"larger map)")
+                           f"(valid range: at least {MIN_SUMMITS}; lower --min-prominence, --window or --cutoff, "
+                           f"or use a larger map)")
     depth, radius = summits.depth, summits.radius
     if not np.var(depth) > 0:
         raise SurfaceError(f"{surf.source}: all summits at the same height: the height distribution cannot be fitted")
@@ -121,11 +159,17 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     # the depth reference is the highest summit of each resample
     bd = summits.height[idx].max(axis=1, keepdims=True) - summits.height[idx]
     ba, bb, bm, bs = _moments_fit(bd, radius[idx])
+    # the surface's mean plane lies max(summit heights) - mean(h) below the highest summit: the mean
+    # summit depth (alpha+1) beta plus the summits' offset above that plane
+    below_top = summits.height.max() - float(np.nanmean(surf.heights))
+    offset = max(below_top - (alpha + 1.0) * beta, 0.0)
+    b_offset = summits.height[idx].max(axis=1) - float(np.nanmean(surf.heights)) - (ba + 1.0) * bb
     stderr = {"N": math.sqrt(summits.n) / summits.area, "alpha": float(ba.std(ddof=1)), "beta": float(bb.std(ddof=1)),
-              "R_m": float(bm.std(ddof=1)), "R_sigma": float(bs.std(ddof=1))}
+              "R_m": float(bm.std(ddof=1)), "R_sigma": float(bs.std(ddof=1)),
+              "summit_offset": float(np.std(b_offset, ddof=1))}
     try:
         params = rest.replace(N=summits.density, alpha=float(alpha), beta=float(beta), R_m=float(R_m),
-                              R_sigma=float(R_sigma))
+                              R_sigma=float(R_sigma), summit_offset=float(offset))
     except ValueError as err:
         raise SurfaceError(f"{surf.source}: fitted parameters are not valid: {err}") from None
     ks_h = stats.kstest(depth, stats.gamma(params.alpha + 1.0, scale=params.beta).cdf).statistic
@@ -135,17 +179,22 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
     rho = stats.spearmanr(depth, radius).statistic
     goodness = {"heights": float(ks_h), "radii": float(ks_r), "n": summits.n, "spearman_depth_radius": float(rho)}
     settings = {"detrend": detrend_mode, "min_prominence": float(min_prominence), "window": int(window),
-                "bootstrap": int(bootstrap),
-                "seed": int(seed), "source": surf.source}
+                "cutoff": cut, "bootstrap": int(bootstrap), "seed": int(seed), "source": surf.source}
+    report = scale_report(surf, summits, raw=raw, steps=[height_step(s.heights, s.mask) for s in inputs],
+                          window=window, cutoff=cut, cutoff_choice=choice, cutoff_note=note, ladder=ladder)
+    for message in report.warnings:
+        warnings.warn(f"{surf.source}: {message}", SurfaceScaleWarning, stacklevel=2)
     pair = None
-    if other is not None:  # two surfaces: e and the contact slopes (only second differences of h1 are used,
+    if len(inputs) > 1:  # two surfaces: e and the contact slopes (only second differences of h1 are used,
         from .pair import pair_statistics  # so its detrending, plane or mean, does not matter)
 
         at = default_closure(params) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
-        pair = pair_statistics(composite(topography, None, detrend_mode), summits, params, at, bootstrap, seed)
+        first = composite(inputs[0], None, detrend_mode)
+        first = first if cut is None else s_filter(first, cut)  # at the fit's scale, as the summits
+        pair = pair_statistics(first, summits, params, at, bootstrap, seed)
         params, stderr = params.replace(e=pair["e"]), {**stderr, "e": pair["e_stderr"]}
     return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings,
-                     pair=pair)
+                     scale=report, pair=pair)
 
 
 # -- empirical population --------------------------------------------------------------
@@ -213,6 +262,8 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
              f"detrend {s.get('detrend')}); KS statistic of depths vs gamma {g['heights']:.3f}, "
              f"of radii vs truncated Gaussian {g['radii']:.3f}; rank correlation of depth and radius "
              f"{g['spearman_depth_radius']:.3f} (the model takes them independent)",
+             *(f"# {line}" for line in (result.scale.lines() if result.scale is not None else ())),
+             *(f"# WARNING: {w}" for w in (result.scale.warnings if result.scale is not None else ())),
              *(pair_comments(result.pair) if result.pair is not None else []),
              f"# Parameters not identified by a topography come from {result.source_of_rest}.",
              "# Run:  asperity-sim run THIS_FILE.toml",

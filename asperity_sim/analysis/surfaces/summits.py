@@ -1,8 +1,9 @@
 """Summits of a topography: identification, curvatures, and the spectral moments (Nayak).
 
 Owns :func:`find_summits` (local maxima on the 8-neighbour grid with their heights and mean
-curvature radii) and the random-process description of a surface (spectral moments
-m0, m2, m4 and Nayak's bandwidth parameter).
+curvature radii), where a summit may be (:func:`eligible`: not on the border of a non-periodic
+map, not within the window of a pixel without data) and the random-process description of a
+surface (spectral moments m0, m2, m4 and Nayak's bandwidth parameter).
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from ...checks import check_int, check_real
 from ...errors import SurfaceError
 from .topography import as_surface
 
-IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma")
-NOT_IDENTIFIED = ("mu", "G", "nu", "e", "r_o", "b", "c", "d")
+IDENTIFIED = ("N", "alpha", "beta", "R_m", "R_sigma", "summit_offset")
+NOT_IDENTIFIED = ("mu", "G", "nu", "e", "r_o", "b", "c", "d", "interaction")
 MIN_SUMMITS = 20
 
 
@@ -62,11 +63,34 @@ class Summits:
         return self.n / self.area
 
 
+def eligible(surface, window: int = 1) -> np.ndarray:
+    """Pixels that may be summits (bool (nx, ny)): their whole (2 window + 1)² square is measured data.
+
+    On a non-periodic map the ``window`` border rows and columns never qualify (their square is
+    not complete); nor does any pixel within ``window`` pixels of one of ``surface.mask`` (missing
+    data, filled).  The nominal area of the summit density is the area of these pixels.
+    """
+    from scipy import ndimage
+
+    s = surface
+    K = int(window)
+    nx, ny = s.heights.shape
+    ok = np.ones((nx, ny), dtype=bool)
+    if not s.periodic:
+        ok[:K], ok[-K:], ok[:, :K], ok[:, -K:] = False, False, False, False
+    if s.mask is not None and np.any(s.mask):
+        near = ndimage.maximum_filter(np.asarray(s.mask, dtype=np.uint8), size=2 * K + 1,
+                                      mode="wrap" if s.periodic else "constant").astype(bool)
+        ok &= ~near
+    return ok
+
+
 def find_summits(surface, min_prominence: float = 0.0, window: int = 1) -> Summits:
     """Summits of a composite :class:`Surface` (see the module docstring).
 
     A summit is strictly higher than every other pixel of the (2 window + 1)² square around it
-    (window = 1: the 8 neighbours) and at least ``min_prominence`` [m] higher than the highest of them.
+    (window = 1: the 8 neighbours) and at least ``min_prominence`` [m] higher than the highest of
+    them, and it is :func:`eligible` (no missing data in its square, not on a border).
     """
     from scipy import ndimage
 
@@ -84,14 +108,13 @@ def find_summits(surface, min_prominence: float = 0.0, window: int = 1) -> Summi
     # highest other pixel of the window (C loop of scipy.ndimage, no Python loop over pixels)
     top = ndimage.maximum_filter(h, footprint=footprint, mode="wrap" if s.periodic else "nearest")
     prom = h - top
-    mask = prom > 0.0
+    ok = eligible(s, K)
+    mask = (prom > 0.0) & ok
     if min_prominence > 0.0:
         mask &= prom >= min_prominence
-    if s.periodic:
-        area = s.area
-    else:  # the border pixels never qualify: their window is not complete
-        mask[:K], mask[-K:], mask[:, :K], mask[:, -K:] = False, False, False, False
-        area = (nx - 2 * K) * dx * (ny - 2 * K) * dy
+    area = float(ok.sum()) * dx * dy
+    if area <= 0.0:
+        raise SurfaceError(f"{s.source}: no pixel has its whole {2 * K + 1}x{2 * K + 1} window in measured data")
     ii, jj = np.nonzero(mask)
     z = h[ii, jj]
     ip, im = (ii + 1) % nx, (ii - 1) % nx  # inside the border for a non-periodic map

@@ -1,9 +1,12 @@
-"""Measured and synthetic topographies: reading, detrending, the composite of two surfaces.
+"""Measured and synthetic topographies: reading, missing data, detrending, the composite of two surfaces.
 
-Owns :class:`Surface` (heights on a regular grid, SI units) and how one is obtained: read from
-an instrument file through SurfaceTopography (an optional dependency), built from arrays,
-synthesised as a self-affine random surface, detrended, and the composite (sum) of two
-surfaces in contact.
+Owns :class:`Surface` (heights on a regular grid, SI units, with the mask of the pixels the
+instrument did not measure) and how one is obtained: read from an instrument file through
+SurfaceTopography (an optional dependency), built from arrays, synthesised as a self-affine
+random surface, detrended, and the composite (sum) of two surfaces in contact.  Missing data are
+filled by SurfaceTopography's harmonic interpolation (so detrending and filtering see a complete
+map) and kept in ``Surface.mask``, so that no summit is taken on or beside a filled pixel.
+A one-dimensional profile is refused: the model needs areal data.
 """
 
 from __future__ import annotations
@@ -48,13 +51,20 @@ def _unit_factor(unit, where) -> float:
 
 @dataclass(frozen=True)
 class Surface:
-    """A height map in SI: heights (nx, ny) [m] on a grid of physical size (Lx, Ly) [m]."""
+    """A height map in SI: heights (nx, ny) [m] on a grid of physical size (Lx, Ly) [m].
+
+    mask : bool (nx, ny) or None, True where the heights are not measured data at this
+        surface's scale: missing in the file (filled by harmonic interpolation), and after a
+        cutoff (:func:`~asperity_sim.analysis.surfaces.scale.s_filter`) also within its reach of
+        such pixels or of the edge of a non-periodic map.  Summits are never taken there.
+    """
 
     heights: np.ndarray
     physical_sizes: tuple[float, float]
     periodic: bool = False
     source: str = "<array>"
     slopes: tuple | None = None  # (d h1/dx, d h1/dy) [1] of the first surface of a composite
+    mask: np.ndarray | None = None
 
     @property
     def nb_grid_pts(self):
@@ -67,6 +77,49 @@ class Surface:
     @property
     def area(self) -> float:
         return self.physical_sizes[0] * self.physical_sizes[1]
+
+    @property
+    def missing_fraction(self) -> float:
+        """Fraction of the pixels that are not measured data (see ``mask``) [1]."""
+        return 0.0 if self.mask is None else float(np.mean(self.mask))
+
+
+def profile_error(where, shape) -> SurfaceError:
+    """The error for one-dimensional data: the asperity model needs an areal height map."""
+    pts = " x ".join(str(n) for n in shape)
+    return SurfaceError(f"{where}is a one-dimensional profile (a line scan, {pts} points): the asperity model "
+                        "needs areal data, a 2-D height map with at least 3 points along each axis (an areal scan "
+                        "of an atomic-force, interferometric, confocal or stylus instrument)")
+
+
+def fill_missing(heights, mask, physical_sizes, periodic=False, where="") -> np.ndarray:
+    """Heights with the pixels of ``mask`` filled by harmonic interpolation (SurfaceTopography).
+
+    A harmonic function has no maximum inside the region it fills, so the filling creates no
+    summit of its own; the summit finder excludes the filled pixels and their neighbours anyway.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    if mask.all():
+        raise SurfaceError(f"{where}every pixel is missing data: there is no height to fit")
+    from SurfaceTopography import Topography
+
+    topo = Topography(np.ma.masked_array(np.where(mask, 0.0, heights), mask=mask), tuple(physical_sizes),
+                      periodic=periodic)
+    filled = np.ma.getdata(topo.interpolate_undefined_data().heights()).astype(float)
+    if not np.all(np.isfinite(filled)):
+        raise SurfaceError(f"{where}heights contain NaN or inf after filling the missing data")
+    return filled
+
+
+def with_missing_filled(s: Surface) -> Surface:
+    """``s`` itself, or, when heights are NaN or inf, a copy with them masked and filled."""
+    bad = ~np.isfinite(s.heights)
+    if not bad.any():
+        return s
+    _st()
+    mask = bad if s.mask is None else (bad | s.mask)
+    h = fill_missing(s.heights, mask, s.physical_sizes, s.periodic, f"{s.source}: ")
+    return Surface(h, s.physical_sizes, s.periodic, s.source, s.slopes, mask)
 
 
 def read(path, *, physical_sizes=None, unit=None, channel=None) -> Surface:
@@ -89,7 +142,7 @@ def read(path, *, physical_sizes=None, unit=None, channel=None) -> Surface:
         raise SurfaceError(f"{where}not a topography file SurfaceTopography can read ({first})") from None
     ch = reader.default_channel if channel is None else reader.channels[channel]
     if ch.dim != 2:
-        raise SurfaceError(f"{where}is a line scan (dim = {ch.dim}); fitting needs a 2-D height map")
+        raise profile_error(where, tuple(ch.nb_grid_pts or ()) or ("?",))
     kwargs = {}
     if ch.physical_sizes is None:
         if physical_sizes is None:
@@ -105,28 +158,33 @@ def read(path, *, physical_sizes=None, unit=None, channel=None) -> Surface:
         topo = reader.topography(channel_index=ch.index, **kwargs)
     except Exception as err:  # noqa: BLE001
         raise SurfaceError(f"{where}cannot read the height map: {' '.join(str(err).split())}") from None
-    if topo.has_undefined_data:
-        topo = topo.interpolate_undefined_data()
-    f = _unit_factor(topo.unit, where)
-    h = np.asarray(topo.heights(), dtype=float) * f
-    sizes = tuple(float(s) * f for s in topo.physical_sizes)
-    if not all(math.isfinite(s) and s > 0 for s in sizes):
-        raise SurfaceError(f"{where}physical size {sizes} m is not positive and finite")
-    if not np.all(np.isfinite(h)):
-        raise SurfaceError(f"{where}heights contain NaN or inf after filling undefined data")
-    return Surface(h, sizes, bool(topo.is_periodic), str(path))
+    return from_topography(topo, str(path))
 
 
 def from_topography(topo, source="<topography>") -> Surface:
-    """A :class:`Surface` in metres from a SurfaceTopography ``Topography``."""
-    f = _unit_factor(topo.unit or "m", f"{source}: ")
-    return Surface(np.asarray(topo.heights(), dtype=float) * f, tuple(float(s) * f for s in topo.physical_sizes),
-                   bool(topo.is_periodic), source)
+    """A :class:`Surface` in metres from a SurfaceTopography ``Topography`` (missing data masked and filled)."""
+    where = f"{source}: "
+    if getattr(topo, "dim", 2) != 2 or min(topo.nb_grid_pts) < 3:
+        raise profile_error(where, tuple(topo.nb_grid_pts))
+    f = _unit_factor(topo.unit or "m", where)
+    sizes = tuple(float(s) * f for s in topo.physical_sizes)
+    if not all(math.isfinite(s) and s > 0 for s in sizes):
+        raise SurfaceError(f"{where}physical size {sizes} m is not positive and finite")
+    raw = topo.heights()
+    h = np.asarray(np.ma.getdata(raw), dtype=float) * f
+    mask = np.ma.getmaskarray(raw) | ~np.isfinite(h)
+    periodic = bool(topo.is_periodic)
+    if not mask.any():
+        return Surface(h, sizes, periodic, source)
+    return Surface(fill_missing(h, mask, sizes, periodic, where), sizes, periodic, source, mask=mask)
 
 
 def as_surface(s) -> Surface:
+    """A :class:`Surface` from a Surface (NaN heights masked and filled), a Topography or a file name."""
     if isinstance(s, Surface):
-        return s
+        if s.heights.ndim != 2 or min(s.heights.shape) < 3:
+            raise profile_error(f"{s.source}: ", s.heights.shape)
+        return with_missing_filled(s)
     if isinstance(s, (str, Path)):
         return read(s)
     if hasattr(s, "heights") and hasattr(s, "physical_sizes"):
@@ -134,11 +192,22 @@ def as_surface(s) -> Surface:
     raise SurfaceError(f"{s!r} is not a Surface, a SurfaceTopography Topography or a file name")
 
 
-def detrend(h: np.ndarray, mode: str = "plane") -> np.ndarray:
-    """Heights with the least-squares plane (``plane``), the mean (``mean``) or nothing (``none``) removed."""
+def detrend(h: np.ndarray, mode: str = "plane", mask=None) -> np.ndarray:
+    """Heights with the least-squares plane (``plane``), the mean (``mean``) or nothing (``none``) removed.
+
+    With a ``mask`` (True: not measured) the plane or mean is that of the measured pixels only.
+    """
     check_choice("detrend", mode, DETRENDS, error=SurfaceError)
     if mode == "none":
         return h
+    if mask is not None and np.any(mask):
+        good = ~np.asarray(mask, dtype=bool)
+        if mode == "mean":
+            return h - h[good].mean()
+        i, j = np.nonzero(good)
+        a = np.column_stack([np.ones(i.size), i, j]).astype(float)
+        c = np.linalg.lstsq(a, h[good], rcond=None)[0]
+        return h - c[0] - c[1] * np.arange(h.shape[0])[:, None] - c[2] * np.arange(h.shape[1])[None, :]
     h = h - h.mean()
     if mode == "plane":
         nx, ny = h.shape
@@ -169,9 +238,9 @@ def composite(surface, other=None, detrend_mode: str = "plane") -> Surface:
     a = as_surface(surface)
     if detrend_mode == "plane" and a.periodic and (other is None or as_surface(other).periodic):
         detrend_mode = "mean"  # a periodic map has no plane trend; removing one would put a step at its edge
-    ha = detrend(a.heights, detrend_mode)
+    ha = detrend(a.heights, detrend_mode, a.mask)
     if other is None:
-        return Surface(ha, a.physical_sizes, a.periodic, a.source)
+        return Surface(ha, a.physical_sizes, a.periodic, a.source, mask=a.mask)
     b = as_surface(other)
     if a.heights.shape != b.heights.shape:
         raise SurfaceError(f"grids differ: {a.source} has {a.heights.shape[0]} x {a.heights.shape[1]} points, "
@@ -182,11 +251,12 @@ def composite(surface, other=None, detrend_mode: str = "plane") -> Surface:
                            f"{a.physical_sizes[0]:.6g} x {a.physical_sizes[1]:.6g} m, "
                            f"{b.source} {b.physical_sizes[0]:.6g} x {b.physical_sizes[1]:.6g} m "
                            f"(relative tolerance {SIZE_RTOL:g})")
-    hb = detrend(b.heights, detrend_mode)
+    hb = detrend(b.heights, detrend_mode, b.mask)
     periodic = a.periodic and b.periodic
     dx, dy = a.pixel_size
+    mask = a.mask if b.mask is None else b.mask if a.mask is None else (a.mask | b.mask)
     return Surface(ha + hb, a.physical_sizes, periodic, f"{a.source} + {b.source}",
-                   slopes=_gradient(ha, dx, dy, periodic))
+                   slopes=_gradient(ha, dx, dy, periodic), mask=mask)
 
 
 def synthetic(nb_grid_pts=512, physical_size=1e-3, *, hurst=0.8, rms_height=None, rms_slope=None,

@@ -94,6 +94,10 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     As :func:`mdr_trial_block`: the scales of every contact in contact first, in one loop that
     vectorises, then the springs contact by contact; a contact that is lost or outgrew its
     springs goes through :func:`mdr_commit`.  The same values as :func:`mdr_commit`.
+
+    ``fresh`` goes to :func:`mdr_commit` as a run-time bool (``m < 0``): numba compiles a function
+    once per argument type, and a literal ``False`` here and ``True`` in the fresh contacts' commit
+    would compile the whole commit twice.
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
@@ -111,5 +115,5 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
                 res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, 0.0
                 continue
         code, work, stored, diss, events = mdr_commit(dn[i], dds[i], ddt[i], dn_c[sl], 0.0, R[i], consts, arrays, sl,
-                                                      False, scratch)
+                                                      m < 0, scratch)  # False, as a run-time bool (see below)
         res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events

@@ -1,0 +1,203 @@
+"""Whole runs of the two laws, side by side: time from the call to the return, peak memory, threads.
+
+What it measures (R1, mdr with k = 16; every speed a ratio to something timed in the same
+process, because absolute times drift on a shared machine):
+
+1. **Whole-run cost of history**: ``simulate`` on one population, from the call to the return
+   (setup, normal stage, shear stage, dataset), ``paper`` and ``mdr`` alternately (``--rounds``
+   times), at n = 50 000 and 500 000, on two paths: the history benchmark's (sigma_1 to 300 MPa
+   in 10 increments, Delta_2 to 10 um in 40) and the paper's Fig. 13 path (500 MPa in 40, 30 um
+   in 40).  Reported: mdr / paper of the medians (target <= 5), and the time per increment at
+   n = 500 000 over that at n = 50 000 for each law (target >= 8: no fixed per-increment work
+   that small runs would see).  Sampling is not timed (the same for both laws).
+2. **Peak memory**: each law on the history benchmark's path at ``--memory-sizes`` asperities,
+   each in a fresh process, sampling included: the process's peak resident set (VmHWM), against
+   the ``paper`` peak plus the springs of the contacts (2 k float64 per contact at the largest
+   contact count of the run, the two tangential directions of k springs).  Target: <= 1.1.  The
+   bytes the mdr state holds at the end (capacity included) are reported beside it.
+3. **Threads**: the same path at ``--thread-n`` asperities with 1 and with every thread numba
+   has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
+   >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
+
+Run:   python benchmarks/whole_run.py [--rounds 3] [--memory-sizes 1000000] [--thread-n 1000000]
+Writes outputs/whole_run.json and prints a table.  About 3 minutes on 2 cores (2026-11-27).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from asperity_sim import Population, paths, presets, simulate
+
+OUT = Path(__file__).resolve().parent.parent / "outputs"
+S, D = paths.STRESS, paths.DISPLACEMENT
+K = 16
+
+
+def bench_path():
+    return paths.LoadPath((paths.Stage((S, D, D), (300e6, 0, 0), 10, name="normal"),
+                           paths.Stage((S, D, D), (300e6, 10e-6, 0), 40, name="shear")), name="benchmark")
+
+
+PATHS = {"benchmark": bench_path, "fig13": lambda: paths.constant_normal_shear(500e6, 30e-6)}
+
+
+def law_kw(law):
+    return {"law": law, "k": K} if law == "mdr" else {"law": law}
+
+
+def run_time(pop, path, law):
+    """Wall time [s] of ``simulate`` from the call to the return, and its increments."""
+    t = time.perf_counter()
+    ds = simulate(pop.params, path, population=pop, **law_kw(law))
+    return time.perf_counter() - t, int(ds.sizes["step"] - 1)
+
+
+def side_by_side(pop, path, rounds):
+    """Median whole-run time of each law [s], alternating, and the increments of the path."""
+    times = {"paper": [], "mdr": []}
+    for _ in range(rounds):
+        for law in times:
+            t, n_inc = run_time(pop, path, law)
+            times[law].append(t)
+    return {law: float(np.median(t)) for law, t in times.items()}, n_inc, times
+
+
+def whole_runs(sizes, rounds):
+    out = {}
+    for name, make in PATHS.items():
+        path = make()
+        res = {}
+        for n in sizes:
+            pop = Population.sample(presets.R1, n, seed=1)
+            med, n_inc, every = side_by_side(pop, path, rounds)
+            res[str(n)] = dict(paper_s=med["paper"], mdr_s=med["mdr"], mdr_over_paper=med["mdr"] / med["paper"],
+                               increments=n_inc, rounds=every)
+            print(f"  {name:9s} n = {n:>7d}: paper {med['paper']:.3f} s, mdr {med['mdr']:.3f} s "
+                  f"-> mdr / paper {med['mdr'] / med['paper']:.2f} (target <= 5)", flush=True)
+        lo, hi = str(min(sizes)), str(max(sizes))
+        res["increment_scaling"] = {law: res[hi][f"{law}_s"] / res[lo][f"{law}_s"] for law in ("paper", "mdr")}
+        print(f"  {name:9s} time per increment at n = {hi} over n = {lo}: "
+              + ", ".join(f"{law} {v:.1f}" for law, v in res["increment_scaling"].items()) + " (target >= 8)")
+        out[name] = res
+    return out
+
+
+MEMORY = r"""
+import json, resource, sys
+import numpy as np
+sys.path.insert(0, sys.argv[3])
+from whole_run import bench_path, law_kw
+from asperity_sim import Population, presets, simulate
+from asperity_sim.solve import run as driver
+
+def peak_rss():
+    # this process's own peak [B]: VmHWM starts anew at exec, where ru_maxrss keeps the parent's peak
+    try:
+        with open("/proc/self/status") as f:
+            return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+n, law = int(sys.argv[1]), sys.argv[2]
+simulate(presets.R1, bench_path(), n=2000, **law_kw(law))  # kernels from the cache, small arrays
+states = []
+plain = driver.ContactState
+class Kept(plain):
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        states.append(self)
+driver.ContactState = Kept
+before = peak_rss()
+pop = Population.sample(presets.R1, n, seed=1)
+ds = simulate(presets.R1, bench_path(), population=pop, **law_kw(law))
+st = states[-1]
+print(json.dumps({"n": n, "law": law, "peak_rss": peak_rss(), "peak_rss_before": before,
+                  "contacts_max": int(ds.n_contact.values.max()), "state_bytes": int(st.nbytes),
+                  "population_bytes": int(pop.nbytes)}))
+"""
+
+
+def memory(sizes):
+    here = str(Path(__file__).resolve().parent)
+    out = {}
+    for n in sizes:
+        res = {}
+        for law in ("paper", "mdr"):
+            p = subprocess.run([sys.executable, "-c", MEMORY, str(n), law, here], capture_output=True, text=True)
+            if p.returncode:
+                raise RuntimeError(f"memory case n = {n}, law {law} failed:\n{p.stderr[-2000:]}")
+            res[law] = json.loads(p.stdout.strip().splitlines()[-1])
+        springs = res["mdr"]["contacts_max"] * 2 * K * 8
+        ratio = res["mdr"]["peak_rss"] / (res["paper"]["peak_rss"] + springs)
+        res.update(springs_bytes=springs, ratio=ratio)
+        out[str(n)] = res
+        print(f"  n = {n}: peak paper {res['paper']['peak_rss'] / 2**20:.0f} MiB, mdr {res['mdr']['peak_rss'] / 2**20:.0f}"
+              f" MiB; springs of {res['mdr']['contacts_max']} contacts {springs / 2**20:.0f} MiB -> mdr / (paper + "
+              f"springs) = {ratio:.2f} (target <= 1.1); the mdr state holds {res['mdr']['state_bytes'] / 2**20:.0f} MiB",
+              flush=True)
+    return out
+
+
+def threads(n, rounds):
+    """Increment time [s] per law with 1 and with every thread, alternating; efficiency t_1 / (p t_p)."""
+    p_max = numba.get_num_threads()
+    pop = Population.sample(presets.R1, n, seed=1)
+    path = bench_path()
+    out = {"n": n, "threads": p_max}
+    for law in ("paper", "mdr"):
+        t = {1: [], p_max: []}
+        for _ in range(rounds):
+            for p in t:
+                numba.set_num_threads(p)
+                s, n_inc = run_time(pop, path, law)
+                t[p].append(s / n_inc)
+        numba.set_num_threads(p_max)
+        t1, tp = float(np.median(t[1])), float(np.median(t[p_max]))
+        out[law] = dict(increment_1_s=t1, increment_p_s=tp, efficiency=t1 / (p_max * tp))
+        print(f"  {law:5s} n = {n}: increment {1e3 * t1:.2f} ms on 1 thread, {1e3 * tp:.2f} ms on {p_max} -> "
+              f"efficiency {t1 / (p_max * tp):.2f} (target >= 0.9)", flush=True)
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--sizes", default="50000,500000")
+    ap.add_argument("--memory-sizes", default="1000000")
+    ap.add_argument("--thread-n", type=int, default=1_000_000)
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
+                       "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "k": K}
+    warm = Population.sample(presets.R1, 2000, seed=0)
+    for law in ("paper", "mdr"):  # compile, or load from the cache
+        run_time(warm, bench_path(), law)
+    print("whole runs (from the call to the return):")
+    out["whole_run"] = whole_runs([int(s) for s in args.sizes.split(",")], args.rounds)
+    print("peak memory (fresh processes, sampling included):")
+    out["memory"] = memory([int(s) for s in args.memory_sizes.split(",") if s])
+    print("threads:")
+    out["threads"] = threads(args.thread_n, args.rounds)
+    out["machine"]["load_end"] = os.getloadavg()[0]
+    out["wall_s"] = time.perf_counter() - t0
+    OUT.mkdir(exist_ok=True)
+    (OUT / "whole_run.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {OUT / 'whole_run.json'} ({out['wall_s']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
