@@ -117,3 +117,21 @@ def test_beta_fit_of_curvature_ratios():
     lam = rng.beta(3.0, 2.0, size=20_000)
     a, b = variants.curvature_ratio_fit(np.ones_like(lam), lam)
     assert a == pytest.approx(3.0, rel=0.05) and b == pytest.approx(2.0, rel=0.05)
+
+
+@needs_st
+def test_interaction_through_the_solver_equals_its_closed_form(fitted):
+    """The interaction variant run through simulate (Newton on the mean-field fixed point) against the closed form:
+    the parametric model's closure less kappa p (kappa = 2 / (sqrt(pi N) E*)), the same area, on one population."""
+    pressures = np.array([5e6, 50e6, 0.5e6])  # not in order: the solver's stages are
+    n, seed = 4000, 7
+    solved = variants.solver_interaction(fitted, pressures, n, seed)
+    plain = variants.VARIANTS["parametric"].solve(fitted, pressures, n, seed)
+    p = fitted.params
+    kappa = 2.0 / (math.sqrt(math.pi * p.N) * p.E_star)
+    np.testing.assert_allclose(plain.closure - solved.closure, kappa * pressures, rtol=1e-3)
+    np.testing.assert_allclose(solved.area, plain.area, rtol=1e-5)
+    shifted = variants.VARIANTS["elliptic_interaction"].solve(fitted, pressures, n, seed)
+    elliptic = variants.VARIANTS["elliptic"].solve(fitted, pressures, n, seed)
+    np.testing.assert_allclose(shifted.closure, elliptic.closure - kappa * pressures, rtol=1e-12)
+    assert np.array_equal(shifted.area, elliptic.area)

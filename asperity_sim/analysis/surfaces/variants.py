@@ -27,9 +27,12 @@ from typing import Callable
 import numpy as np
 from scipy import optimize
 
+from ... import paths
 from ...checks import check_int
 from ...errors import SurfaceError
+from ...kernels import interaction
 from ...sampling.population import Population
+from ...solve.driver import simulate
 from . import contact_scale, elliptic
 from .fitting import FitResult
 
@@ -264,6 +267,36 @@ def contact_scale_summits(fit: Fitted, n, seed):
                           p.E_star)
 
 
+def with_interaction(solve):
+    """``solve`` with the mean-field elastic interaction between contacts (interaction = 1,
+    :mod:`asperity_sim.kernels.interaction`): the contacts overlap by Delta_1 + kappa sigma_1, so at a
+    pressure p they carry it at the overlaps of ``solve`` and the interface closes kappa p less."""
+
+    def solved(fit: Fitted, pressures, n, seed):
+        a = solve(fit, pressures, n, seed)
+        shift = interaction.kappa(fit.params.replace(interaction=1.0)) * np.atleast_1d(np.asarray(pressures, float))
+        return Answer(a.closure - shift, a.closure_se, a.area, a.area_se)
+
+    return solved
+
+
+def solver_interaction(fit: Fitted, pressures, n, seed, increments=4):
+    """The fitted model with interaction = 1 run through :func:`~asperity_sim.solve.driver.simulate` (paper law,
+    e = 0, sigma_1 stress-controlled to each pressure in turn): the package's own Newton solution of the
+    interaction, where :func:`with_interaction` applies its closed form to :func:`parametric`."""
+    params = fit.params.replace(interaction=1.0)
+    p = np.atleast_1d(np.asarray(pressures, float))
+    order = np.argsort(p)
+    control = (paths.STRESS, paths.DISPLACEMENT, paths.DISPLACEMENT)
+    path = paths.LoadPath(tuple(paths.Stage(control, (float(pk), 0.0, 0.0), increments) for pk in p[order]))
+    ds = simulate(params, path, population=Population.sample(params, check_int("n", n, 2), seed=seed), law="paper")
+    ends = np.searchsorted(ds.stage.values, np.arange(1, p.size + 1), side="right") - 1
+    out = np.empty((4, p.size))
+    out[:, order] = (ds.displacement.values[ends, 0], ds.displacement_stderr.values[ends, 0],
+                     ds.contact_area_fraction.values[ends], ds.contact_area_fraction_stderr.values[ends])
+    return Answer(*out)
+
+
 @dataclass(frozen=True)
 class Variant:
     """A model variant: its description and ``solve(fitted, pressures, n, seed) -> Answer``."""
@@ -286,5 +319,9 @@ VARIANTS = {
                                    _population(elliptic_parametric)),
     "contact_scale": Variant("summits resampled jointly, paraboloids fitted over discs of the contact radius",
                              _population(contact_scale_summits)),
+    "interaction": Variant("the fitted model with the mean-field elastic interaction (simulate, interaction = 1)",
+                           solver_interaction),
+    "elliptic_interaction": Variant("elliptic summits resampled jointly, with the mean-field elastic interaction",
+                                    with_interaction(_population(elliptic_summits))),
 }
 """The model variants of the exact-contact comparison, by name (each measured on its own)."""
