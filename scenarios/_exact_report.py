@@ -6,7 +6,8 @@ import numpy as np
 
 STYLE = {"parametric": ("tab:blue", "-"), "empirical": ("tab:orange", "-"), "independent": ("tab:green", ":"),
          "elliptic": ("tab:red", "--"), "elliptic_parametric": ("tab:purple", "--"),
-         "contact_scale": ("tab:brown", "-.")}
+         "contact_scale": ("tab:brown", "-."), "interaction": ("tab:cyan", "-"),
+         "elliptic_interaction": ("tab:pink", "-")}
 WITHIN = 0.10  # the goal: within 10 % of BEM
 
 

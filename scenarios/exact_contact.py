@@ -28,6 +28,7 @@ simulate with sigma_1 and sigma_2 stress controlled.  Compared: the mean tangent
 the stick-area fraction and the initial (Mindlin) tangential stiffness.
 
 Run:   python scenarios/exact_contact.py [--pairs 3] [--loads 8] [--double 1] [--shear-pairs 3] [--quick]
+       python scenarios/exact_contact.py --report outputs/exact_contact.nc   (figures and tables only)
 Writes outputs/exact_contact.nc, outputs/exact_contact_normal.png, outputs/exact_contact_shear.png
 and prints the tables of docs/surfaces.md (from the netCDF file alone).
 Expected run time: about 90 min on 2 shared cores at the defaults (the doubled 2048² BEM of family A
@@ -91,7 +92,11 @@ def parse(argv=None):
     p.add_argument("--tolerance", type=float, default=1e-10, help="tamaas solver tolerance (default 1e-10)")
     p.add_argument("--outdir", type=Path, default=OUTPUTS, help="folder for .nc and .png (default outputs/)")
     p.add_argument("--quick", action="store_true", help="256², one pair, 4 loads, shear at one pressure, n = 20000")
+    p.add_argument("--report", type=Path, default=None, metavar="FILE",
+                   help="draw the figures and print the tables of an existing exact_contact.nc (no solve)")
     args = p.parse_args(argv)
+    if args.report is not None and not args.report.is_file():
+        p.error(f"--report {args.report}: no such file (valid: an exact_contact.nc written by this script)")
     args.families = QUICK if args.quick else FAMILIES
     args.shear_loads = SHEAR_LOADS[1:] if args.quick else SHEAR_LOADS
     args.fractions = (0.05, 0.5, 0.9) if args.quick else SHEAR_FRACTIONS
@@ -163,8 +168,21 @@ def _attrs(units, long_name):
     return {"units": units, "long_name": long_name}
 
 
+def report(path: Path, outdir: Path):
+    """Figures and tables of a written exact_contact.nc, from the file alone."""
+    back = read_netcdf(path)
+    outdir.mkdir(parents=True, exist_ok=True)
+    plot_normal(back).savefig(outdir / "exact_contact_normal.png", dpi=130)
+    plot_shear(back).savefig(outdir / "exact_contact_shear.png", dpi=130)
+    print(tables(back))
+    print(f"figures: {outdir / 'exact_contact_normal.png'}, {outdir / 'exact_contact_shear.png'}")
+
+
 def main(argv=None):
     args = parse(argv)
+    if args.report is not None:
+        report(args.report, args.outdir)
+        return 0
     from asperity_sim.analysis import surfaces as sf
     from asperity_sim.analysis.surfaces.variants import VARIANTS
 
@@ -279,12 +297,8 @@ def main(argv=None):
         **{f"seconds_family_{k}": v for k, v in seconds.items()}, "seconds_total": time.perf_counter() - t_all})
     args.outdir.mkdir(parents=True, exist_ok=True)
     path = write_netcdf(ds, args.outdir / "exact_contact.nc")
-    back = read_netcdf(path)
-    plot_normal(back).savefig(args.outdir / "exact_contact_normal.png", dpi=130)
-    plot_shear(back).savefig(args.outdir / "exact_contact_shear.png", dpi=130)
-    print(tables(back))
-    print(f"wrote {path}, {args.outdir / 'exact_contact_normal.png'}, {args.outdir / 'exact_contact_shear.png'} "
-          f"in {time.perf_counter() - t_all:.0f} s")
+    report(path, args.outdir)
+    print(f"wrote {path} in {time.perf_counter() - t_all:.0f} s")
     return 0
 
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import warnings
@@ -37,12 +38,14 @@ def cmd_run(args) -> int:
     if args.scene is not None:
         scene = load_scene(args.scene)
         changes = {k: getattr(args, k) for k in ("n", "seed") if getattr(args, k) is not None}
+        if args.interaction is not None:
+            changes["params"] = dataclasses.replace(scene.params, interaction=args.interaction)
         scene = scene.replace(**changes)
         default = scene.default_output()
     else:
-        if args.n is not None or args.seed is not None:
-            raise UsageError(f"{PROG} run: error: --n and --seed need the scene; a checkpoint alone resumes its own "
-                             f"run (see {PROG} run --help)")
+        if args.n is not None or args.seed is not None or args.interaction is not None:
+            raise UsageError(f"{PROG} run: error: --n, --seed and --interaction need the scene; a checkpoint alone "
+                             f"resumes its own run (see {PROG} run --help)")
         default = Path(args.resume.with_suffix(".nc").name)
     out = check_output(args.output or default, inputs=(args.scene, args.resume, args.checkpoint),
                         overwrite=args.overwrite)
@@ -168,8 +171,6 @@ def cmd_sweep(args) -> int:
 
     sweep = load_sweep(args.sweep)
     if args.n is not None:
-        import dataclasses
-
         sweep = dataclasses.replace(sweep, scene=sweep.scene.replace(n=args.n))
     out = check_output(args.output or sweep.default_output(), inputs=(args.sweep,), overwrite=args.overwrite)
     scheduler = "serial" if args.serial else args.scheduler
