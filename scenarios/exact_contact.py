@@ -29,6 +29,9 @@ the stick-area fraction and the initial (Mindlin) tangential stiffness.
 
 Run:   python scenarios/exact_contact.py [--pairs 3] [--loads 8] [--double 1] [--shear-pairs 3] [--quick]
        python scenarios/exact_contact.py --report outputs/exact_contact.nc   (figures and tables only)
+       python scenarios/exact_contact.py --family A --outdir outputs/A & python scenarios/exact_contact.py
+           --family B --outdir outputs/B; python scenarios/exact_contact.py --merge outputs/A/exact_contact.nc
+           outputs/B/exact_contact.nc        (the families in two processes, one core each, then joined)
 Writes outputs/exact_contact.nc, outputs/exact_contact_normal.png, outputs/exact_contact_shear.png
 and prints the tables of docs/surfaces.md (from the netCDF file alone).
 Expected run time: about 90 min on 2 shared cores at the defaults (the doubled 2048² BEM of family A
@@ -92,12 +95,23 @@ def parse(argv=None):
     p.add_argument("--tolerance", type=float, default=1e-10, help="tamaas solver tolerance (default 1e-10)")
     p.add_argument("--outdir", type=Path, default=OUTPUTS, help="folder for .nc and .png (default outputs/)")
     p.add_argument("--quick", action="store_true", help="256², one pair, 4 loads, shear at one pressure, n = 20000")
+    p.add_argument("--family", action="append", choices=[f.name for f in FAMILIES], default=None,
+                   help="only this family (repeatable; default all): families can run in separate processes, "
+                        "and --merge joins their files")
+    p.add_argument("--merge", type=Path, nargs="+", default=None, metavar="FILE",
+                   help="join the exact_contact.nc files of separate families into <outdir>/exact_contact.nc, then "
+                        "draw and print as --report")
     p.add_argument("--report", type=Path, default=None, metavar="FILE",
                    help="draw the figures and print the tables of an existing exact_contact.nc (no solve)")
     args = p.parse_args(argv)
     if args.report is not None and not args.report.is_file():
         p.error(f"--report {args.report}: no such file (valid: an exact_contact.nc written by this script)")
     args.families = QUICK if args.quick else FAMILIES
+    if args.family:
+        args.families = tuple(f for f in args.families if f.name in args.family)
+    for f in args.merge or ():
+        if not f.is_file():
+            p.error(f"--merge {f}: no such file (valid: exact_contact.nc files written by this script)")
     args.shear_loads = SHEAR_LOADS[1:] if args.quick else SHEAR_LOADS
     args.fractions = (0.05, 0.5, 0.9) if args.quick else SHEAR_FRACTIONS
     if args.quick:
@@ -178,8 +192,34 @@ def report(path: Path, outdir: Path):
     print(f"figures: {outdir / 'exact_contact_normal.png'}, {outdir / 'exact_contact_shear.png'}")
 
 
+def merge(files, outdir: Path) -> Path:
+    """One exact_contact.nc from files of separate families (same settings), joined along ``family``."""
+    parts = [read_netcdf(f) for f in files]
+    keep = ("families", "seconds_total", "history")
+    for ds in parts[1:]:
+        differ = [k for k in parts[0].attrs if not k.startswith(("seconds_family_",) + keep)
+                  and ds.attrs.get(k, parts[0].attrs[k]) != parts[0].attrs[k]]
+        if differ:
+            raise SystemExit(f"--merge: the files differ in {differ}: they are not parts of one run")
+    joined = xr.concat(parts, dim="family", data_vars="minimal", coords="minimal", compat="equals",
+                       combine_attrs="override")
+    joined.attrs.update({
+        "families": "; ".join(ds.attrs["families"] for ds in parts),
+        "seconds_total": float(sum(ds.attrs["seconds_total"] for ds in parts)),
+        "history": " | ".join(ds.attrs["history"] for ds in parts) + " | merged: exact_contact.py --merge "
+                   + " ".join(str(f) for f in files),
+        **{k: v for ds in parts for k, v in ds.attrs.items() if k.startswith("seconds_family_")}})
+    outdir.mkdir(parents=True, exist_ok=True)
+    return write_netcdf(joined, outdir / "exact_contact.nc")
+
+
 def main(argv=None):
     args = parse(argv)
+    if args.merge is not None:
+        path = merge(args.merge, args.outdir)
+        report(path, args.outdir)
+        print(f"wrote {path}")
+        return 0
     if args.report is not None:
         report(args.report, args.outdir)
         return 0
