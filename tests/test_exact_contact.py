@@ -28,6 +28,12 @@ BANDS = {
     ("B", "parametric", "area_fraction"): ([1.015, 1.014, 0.891, 0.760], [0.106, 0.096, 0.041, 0.029]),
     ("B", "elliptic", "area_fraction"): ([0.834, 0.834, 0.735, 0.693], [0.089, 0.083, 0.042, 0.029]),
     ("B", "contact_scale", "area_fraction"): ([0.815, 0.839, 0.785, 0.784], [0.045, 0.056, 0.027, 0.025]),
+    # the mean-field interaction moves only the mean gap (its areas are those of parametric and elliptic); bands
+    # from the same 8 seeds at commit 3e7e4a7
+    ("A", "interaction", "mean_gap"): ([0.839, 0.867, 0.915, 0.919], [0.061, 0.038, 0.032, 0.053]),
+    ("A", "elliptic_interaction", "mean_gap"): ([0.993, 0.984, 0.979, 0.916], [0.008, 0.021, 0.016, 0.05]),
+    ("B", "interaction", "mean_gap"): ([0.78, 0.822, 0.921, 1.114], [0.047, 0.035, 0.017, 0.068]),
+    ("B", "elliptic_interaction", "mean_gap"): ([1.004, 1.049, 1.116, 1.285], [0.008, 0.035, 0.051, 0.11]),
 }
 SHEAR = {  # at Q / (mu p) = 0.05, 0.5, 0.9 and one pressure (Persson target 5 %)
     ("A", "empirical", "displacement"): ([1.381, 1.288, 1.176], [0.068, 0.061, 0.070]),
@@ -83,3 +89,22 @@ def test_exact_contact_quick_runs_and_stays_in_the_band_of_the_realisations(tmp_
             assert q == pytest.approx([0.05, 0.5, 0.9], abs=0.006)  # the BEM reached each prescribed traction
             se = ds.model_mean_gap_stderr.values / ds.model_mean_gap.values
             assert np.nanmax(se) < 0.03  # Monte Carlo errors small against the departures compared
+    # the figures and tables come from the file alone; families written apart join back to the same file
+    from asperity_sim.output.netcdf import read_netcdf, write_netcdf
+
+    again = run_script("scenarios/exact_contact.py", "--report", tmp_path / "exact_contact.nc", "--outdir",
+                       tmp_path / "report")
+    assert again.returncode == 0, again.stderr
+    tables = done.stdout[done.stdout.index("\nFamily A"):].split("figures:")[0]
+    assert again.stdout.split("figures:")[0] == tables
+    whole = read_netcdf(tmp_path / "exact_contact.nc")
+    parts, labels = [], whole.attrs["families"].split("; ")
+    for i, fam in enumerate(("A", "B")):
+        part = whole.isel(family=[i])
+        part.attrs = {**whole.attrs, "families": labels[i], "seconds_total": 1.0}
+        parts.append(write_netcdf(part, tmp_path / f"part_{fam}.nc"))
+    joined = run_script("scenarios/exact_contact.py", "--merge", *parts, "--outdir", tmp_path / "joined")
+    assert joined.returncode == 0, joined.stderr
+    back = read_netcdf(tmp_path / "joined" / "exact_contact.nc")
+    xr.testing.assert_identical(back.drop_attrs(), whole.drop_attrs())
+    assert back.attrs["families"] == whole.attrs["families"]
