@@ -170,12 +170,13 @@ def plot_normal(ds):
 
 
 def plot_shear(ds):
-    """Tangential displacement and stick fraction against Q / (mu p), one column per family."""
+    """Tangential displacement and stick fraction against Q / (mu p), one column per family that has shear runs."""
     plt = _mpl()
-    nf = ds.sizes["family"]
+    sheared = [f for f in ds.family.values if np.isfinite(ds.bem_shear_stiffness.sel(family=f).values).any()]
+    nf = max(len(sheared), 1)
     fig, ax = plt.subplots(2, nf, figsize=(5.5 * nf, 8.5), squeeze=False)
     marks = ("o", "s", "^")
-    for c, fam in enumerate(ds.family.values):
+    for c, fam in enumerate(sheared):
         f = ds.sel(family=fam)
         for j in range(ds.sizes["shear_load"]):
             g = f.sel(shear_load=j)
