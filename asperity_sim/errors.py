@@ -45,6 +45,12 @@ class CheckpointError(ValueError):
     """A checkpoint cannot be used: unreadable, another version or format, or another run."""
 
 
+class InteractionRunawayError(ValueError):
+    """No closure of the contacts carries the interface displacement under the mean-field elastic interaction
+    (kappa T_11 would reach 1: the contacts' load runs away).  Within a stress-controlled solve this marks a
+    trial displacement beyond the load's reach, and the solver steps back (:mod:`asperity_sim.solve.solver`)."""
+
+
 class LawDomainWarning(UserWarning):
     """A path-independent law was driven along a path outside its domain (see :mod:`asperity_sim.solve.domain`)."""
 

@@ -18,9 +18,10 @@ Tasks, with their run time on the 2 shared cores of the development machine (war
 - ``stability``: ``studies/stability.py``, the stability matrix and hostile inputs (cases in
   ``stability_cases.py`` and ``stability_hostile.py`` beside it; about 1-5 min);
 - ``convergence`` (about 30 min) and ``mdr_convergence`` (about 15 min): the two error-against-time
-  studies, run only when named (``--only``) or with ``--all``.
+  studies, and ``exact`` (``scenarios/exact_contact.py``, the model against exact contact mechanics on two
+  surface families, about 90 min; needs tamaas), run only when named (``--only``) or with ``--all``.
 
-The default (the first five) takes about 8-12 minutes; ``--all`` about an hour.  Not regenerated
+The default (the first five) takes about 8-12 minutes; ``--all`` about 2.5 hours.  Not regenerated
 here: the benchmark records (``speed.json``, ``memory.json``, ...: measurements of a machine,
 rerun each benchmark and copy its file from ``outputs/``) and ``convergence_repeat.md`` (a second
 run of the convergence study, kept as a record).
@@ -77,6 +78,9 @@ TASKS = {
                         ("convergence.nc", "convergence.md", "convergence.png", "convergence.log"), default=False),
     "mdr_convergence": Task(("mdr_convergence",), "mdr_convergence.log",
                             ("mdr_convergence.nc", "mdr_convergence.md", "mdr_convergence.log"), default=False),
+    "exact": Task(("exact_contact",), "exact_contact.log", ("exact_contact.nc", "exact_contact_normal.png",
+                                                            "exact_contact_shear.png", "exact_contact.log"),
+                  default=False),
 }
 
 # kept in docs/results/ but written by hand from a benchmark run or a repeated study, not by a task here
@@ -127,7 +131,7 @@ def run_task(name: str, task: Task, workdir: Path, dest: Path, quick: bool) -> f
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", action="append", choices=tuple(TASKS), help="run this task (repeatable)")
-    p.add_argument("--all", action="store_true", help="every task, the long studies included (about an hour)")
+    p.add_argument("--all", action="store_true", help="every task, the long studies included (about 2.5 hours)")
     p.add_argument("--quick", action="store_true",
                    help=f"smoke size, into {QUICK_DEST.relative_to(ROOT)}/ (docs/results/ is left alone)")
     p.add_argument("--dest", type=Path, default=None,

@@ -215,6 +215,9 @@ def test_missing_fields(tmp_path, capsys):
     (["run", "{scene}", "--n", "0"], 2, "argument --n: 0 is out of range (valid range: integer >= 1)"),
     (["run", "{scene}", "--seed", "-3"], 2, "argument --seed: -3 is out of range"),
     (["run", "{scene}", "--n", "many"], 2, "argument --n: 'many' is not an integer"),
+    (["run", "{scene}", "--interaction", "-0.5"], 2, "argument --interaction: -0.5 is out of range (valid range: finite"),
+    (["run", "{scene}", "--interaction", "nan"], 2, "argument --interaction: nan is out of range"),
+    (["run", "{scene}", "--interaction", "strong"], 2, "argument --interaction: 'strong' is not a number"),
     (["run", "{scene}", "-o", "{scene}"], 1, "must end in .nc"),
     (["run", "{scene}", "-o", "result.png"], 1, "output 'result.png' must end in .nc or .nc4"),
     (["info", "absent.nc"], 1, "absent.nc: no such file"),
@@ -441,7 +444,8 @@ def test_run_checkpoint_then_resume_with_or_without_the_scene_gives_the_same_bit
     (["run", "{scene}", "--checkpoint-every", "2"], 2, "--checkpoint-every needs --checkpoint"),
     (["run", "{scene}", "--checkpoint", "{tmp}/x.npz", "--checkpoint-every", "0"], 2, "out of range"),
     (["run"], 2, "SCENE.toml (or --resume CK.npz)"),
-    (["run", "--resume", "{tmp}/bad.npz", "--n", "5"], 2, "--n and --seed need the scene"),
+    (["run", "--resume", "{tmp}/bad.npz", "--n", "5"], 2, "--n, --seed and --interaction need the scene"),
+    (["run", "--resume", "{tmp}/bad.npz", "--interaction", "1"], 2, "--n, --seed and --interaction need the scene"),
 ])
 def test_checkpoint_options_errors(tmp_path, capsys, argv, code, word):
     scene = tmp_path / "small.toml"
@@ -567,3 +571,27 @@ def test_warmup_compiles_a_law_and_says_what_it_did(capsys):
     out = capsys.readouterr().out
     assert "asperity-sim: compiling the paper kernels" in out and "kernels ready for paper in" in out
     assert cli.main(["warmup", "--law", "nosuchlaw"]) == exits.EXIT_USAGE
+
+
+def test_run_interaction_overrides_the_scene_as_python_would(tmp_path, capsys):
+    """--interaction X is [parameters] interaction = X: the run equals simulate with that parameter, bit for bit."""
+    import dataclasses
+
+    from asperity_sim.runs.scene import load_scene
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out0, out1 = tmp_path / "plain.nc", tmp_path / "mean_field.nc"
+    assert cli.main(["run", str(scene), "-q", "-o", str(out0)]) == 0
+    assert cli.main(["run", str(scene), "-q", "--interaction", "1", "-o", str(out1)]) == 0
+    capsys.readouterr()
+    plain, mean_field = read_netcdf(out0), read_netcdf(out1)
+    assert plain.attrs["param_interaction"] == 0.0 and mean_field.attrs["param_interaction"] == 1.0
+    s = load_scene(scene)
+    expected = s.replace(params=dataclasses.replace(s.params, interaction=1.0)).simulate()
+    np.testing.assert_array_equal(mean_field["stress"].values, expected["stress"].values)
+    # Delta_1 is the approach of the surface's mean level, which the contacts' load pushes away from the
+    # contacts: they overlap by more than Delta_1 and the same Delta_1 carries more normal stress
+    loaded = plain["stress"].values[:, 0] > 0.0
+    assert loaded.sum() >= 4
+    assert np.all(mean_field["stress"].values[loaded, 0] > plain["stress"].values[loaded, 0])

@@ -121,3 +121,35 @@ def test_a_run_with_interaction_resumes_from_its_checkpoint_to_the_same_bits(tmp
     resumed, full = resume(ck), simulate(p, path, n=3000, seed=7, law="mdr", k=8)
     for name in ("stress", "displacement", "tangent", "contact_area_fraction", "mean_gap", "dissipation"):
         np.testing.assert_array_equal(resumed[name].values, full[name].values, err_msg=name)
+
+
+def test_a_first_guess_beyond_the_fold_restarts_from_the_left_and_no_root_is_a_named_runaway():
+    """g(c) = c - Delta_1 - kappa sigma_1(c) is concave with a fold where kappa T_11 = 1: a first guess beyond
+    it (a stale offset) must still find the root on the rising branch (checked by bisection on g), and a
+    Delta_1 beyond the top of g has no root: InteractionRunawayError."""
+    from asperity_sim.errors import InteractionRunawayError
+
+    pop = Population.sample(presets.R1, 4000, seed=3)
+
+    def plain(c):
+        return evaluate(pop, c)
+
+    def g(c1, d1, k):
+        return c1 - d1 - k * plain([c1, 0.0, 0.0]).stress[0]
+
+    d1 = 6 * um
+    T11 = plain([d1, 0.0, 0.0]).tangent[0, 0]
+    k = 0.3 / T11  # kappa T_11 = 0.3 at c = Delta_1: the root lies on the rising branch
+    fold = d1
+    while 1.0 - k * plain([fold, 0.0, 0.0]).tangent[0, 0] > 0.0:
+        fold += 0.5 * um
+    lo, hi = d1, fold  # g(lo) <= 0 < g(hi) (checked), bisection to the root
+    assert g(lo, d1, k) <= 0.0 < g(hi - 0.5 * um, d1, k)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if g(mid, d1, k) < 0.0 else (lo, mid)
+    ev = interaction.solve(plain, np.array([d1, 0.0, 0.0]), k, offset=2.0 * (fold - d1))
+    assert ev.at_contacts()[0] == pytest.approx(lo, rel=1e-9)
+    assert ev.at_contacts()[0] < fold
+    with pytest.raises(InteractionRunawayError, match="kappa T_11"):
+        interaction.solve(plain, np.array([fold + 50 * um, 0.0, 0.0]), k)

@@ -318,3 +318,39 @@ def test_mixed_control_from_exactly_zero_load(pops, target):
     res = solve_increment(f, x0, free, tgt, length_scale(pop.params))
     assert_solved(pop, res, free, tgt, x0)
     assert res.iterations <= 25
+
+
+class _Response:
+    """A stiffening response sigma_1 = a Delta_1^2 that, like the mean-field interaction, has no answer beyond
+    x_max (InteractionRunawayError), for the solver's step-back."""
+
+    def __init__(self, a, x_max):
+        self.a, self.x_max, self.points = a, x_max, []
+
+    def __call__(self, x):
+        from types import SimpleNamespace
+
+        from asperity_sim.errors import InteractionRunawayError
+
+        self.points.append(float(x[0]))
+        if x[0] > self.x_max:
+            raise InteractionRunawayError(f"beyond the reach at {x[0]}")
+        d = max(float(x[0]), 0.0)
+        tangent = np.diag([2.0 * self.a * d, 1.0, 1.0])
+        return SimpleNamespace(stress=np.array([self.a * d * d, 0.0, 0.0]), tangent=tangent,
+                               covariance=np.zeros((3, 3)), delta=np.array(x, dtype=float))
+
+
+@pytest.mark.parametrize("free", [[True, False, False], [True, True, False]])
+def test_a_newton_step_beyond_the_reach_of_the_interaction_steps_back(free):
+    """From far below the root, Newton on a convex stress overshoots; where the overshoot has no answer
+    (the mean-field interaction's runaway), the solver steps back and converges to the closed-form root."""
+    a, target = 1e24, 100e6  # [Pa/m^2], [Pa]: root sqrt(target / a) = 10 um
+    root = math.sqrt(target / a)
+    response = _Response(a, x_max=1.2 * root)
+    free = np.array(free)
+    result = solve_increment(response, np.array([0.1 * root, 0.0, 0.0]), free, np.array([target, 0.0, 0.0]),
+                             1e-6, SETTINGS)
+    assert result.converged, result.message
+    assert result.evaluation.delta[0] == pytest.approx(root, rel=1e-9)
+    assert max(response.points) > response.x_max  # the overshoot happened and was survived

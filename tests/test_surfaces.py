@@ -283,9 +283,13 @@ def test_cli_fit_writes_a_valid_scene_and_figure(tmp_path, capsys):
         assert getattr(scene.params, name) == pytest.approx(getattr(res.params, name), rel=1e-5)
     assert scene.params.G == presets.S1.G and scene.params.nu == presets.S1.nu
     text = out.read_text()
-    assert text.count("not identified from topography: preset S1") == len(sf.NOT_IDENTIFIED)
+    # two surfaces identify e too (analysis/surfaces/pair.py): the rest comes from the preset
+    assert text.count("not identified from topography: preset S1") == len(sf.NOT_IDENTIFIED) - 1
+    assert "e = " in text and "fitted from the two surfaces" in text and "# Contact slopes theta" in text
+    assert scene.params.e == pytest.approx(res.params.e, rel=1e-9) and res.stderr["e"] > 0
     assert 'R_m = "' in text and ' um"' in text  # quantities carry units
-    assert "summits" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "summits" in printed and "two surfaces" in printed and "Contact slopes" in printed
 
 
 @needs_st

@@ -17,7 +17,8 @@ more than the rigid estimate, so that at a given load the mean level is kappa si
 away: the mean gap is larger (`InterfaceParams.interaction`, 1: this estimate, 0: off; shear
 components are not changed).  :func:`solve` finds Delta_c by Newton's method on the scalar
 g(c) = c - Delta_1 - kappa sigma_1(c), g' = 1 - kappa T_11 > 0 (a larger kappa T_11 would make
-the contacts' load run away), and :func:`transformed` gives the response at Delta with its exact
+the contacts' load run away: :class:`~asperity_sim.errors.InteractionRunawayError`), from the last
+offset or, where that lies beyond the fold of g, from c = Delta_1, and :func:`transformed` gives the response at Delta with its exact
 tangent, dDelta_c/dDelta = I + kappa e_1 t, t = T_1,:/(1 - kappa T_11), T = T_c (I + kappa e_1 t),
 and the Monte Carlo covariances carried through the same fixed point
 (M = I + kappa T_:,1 e_1^T / (1 - kappa T_11)).
@@ -29,6 +30,8 @@ import dataclasses
 import math
 
 import numpy as np
+
+from ..errors import InteractionRunawayError
 
 __all__ = ["kappa", "solve", "transformed"]
 
@@ -46,7 +49,7 @@ def transformed(ev, delta, k):
     T = ev.tangent
     denominator = 1.0 - k * T[0, 0]
     if not denominator > 0.0:
-        raise ValueError(f"elastic interaction too strong: kappa T_11 = {k * T[0, 0]:.4g} >= 1 at Delta = "
+        raise InteractionRunawayError(f"elastic interaction too strong: kappa T_11 = {k * T[0, 0]:.4g} >= 1 at Delta = "
                          f"{np.asarray(delta).tolist()} m (the contacts' load would run away; lower interaction)")
     t = T[0, :] / denominator                     # d sigma_1 / d Delta
     tangent = T + k * np.outer(T[:, 0], t)
@@ -73,12 +76,18 @@ def solve(evaluate_contacts, delta, k, offset=0.0, rtol=1e-13):
     delta = np.asarray(delta, dtype=float)
     c = delta.copy()
     c[0] += max(offset, 0.0)
+    from_left = offset <= 0.0
     for _ in range(MAX_ITERATIONS):
         ev = evaluate_contacts(c)
         g = c[0] - delta[0] - k * ev.stress[0]
         slope = 1.0 - k * ev.tangent[0, 0]
         if not slope > 0.0:
-            return transformed(ev, delta, k)  # raises, naming kappa T_11
+            if from_left:
+                return transformed(ev, delta, k)  # raises InteractionRunawayError, naming kappa T_11
+            # the first guess lies beyond the fold of g: start again from c = Delta, where g <= 0; g is concave
+            # (sigma_1 stiffens), so Newton from there rises to the root, if there is one, with g' > 0
+            c, from_left = delta.copy(), True
+            continue
         step = -g / slope
         if abs(step) <= rtol * max(abs(c[0] - delta[0]), 1e-300) or abs(step) <= 4.0 * math.ulp(abs(c[0]) + 1e-300):
             return transformed(ev, delta, k)

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import check_int, check_real
+from ..errors import InteractionRunawayError
 
 
 @dataclass(frozen=True)
@@ -243,8 +244,18 @@ def _solve_scalar(evaluate, x, ev, k, free, target, L, settings):
                                        f"- {x0:.6g} m| <= max_search = {settings.max_search:g} length scales "
                                        f"({settings.max_search * L:.3g} m): the stress there is only "
                                        f"{ev.stress[k]:.6g} Pa", ev, unreachable=True)
-        x[k] = xk = x_new
-        ev = evaluate(x)
+        x[k] = xk_new = x_new
+        ev = None
+        for _ in range(64):
+            try:
+                ev = evaluate(x)
+                break
+            except InteractionRunawayError:  # beyond the load's reach (mean-field interaction): step back halfway
+                x[k] = xk_new = xk + 0.5 * (xk_new - xk)
+        if ev is None:
+            return SolveResult(False, it, abs(r), rate, f"Delta_{k + 1} = {xk:.6g} m is at the edge of the mean-field "
+                               "interaction's reach: no closure of the contacts carries a step beyond it", best[1])
+        xk = xk_new
     r, _ = _scaled_residual(ev, free, target, settings)
     return SolveResult(False, settings.max_iter, float(abs(r[0])), rate,
                        f"no convergence on sigma_{k + 1} in {settings.max_iter} iterations", ev)
@@ -286,7 +297,11 @@ def _solve_newton(evaluate, x, ev, free, target, L, settings):
         for _ in range(30):
             x_try = x.copy()
             x_try[idx] += lam * step * L
-            ev_try = evaluate(x_try)
+            try:
+                ev_try = evaluate(x_try)
+            except InteractionRunawayError:  # beyond the load's reach (mean-field interaction): a shorter step
+                lam *= 0.5
+                continue
             r_try, _ = _scaled_residual(ev_try, free, target, settings, scale)
             norm_try = float(np.max(np.abs(r_try)))
             if np.all(np.isfinite(r_try)) and (norm_try < (1.0 - 1e-4 * lam) * norm or dead.any()):

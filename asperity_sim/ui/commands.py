@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import warnings
@@ -37,12 +38,14 @@ def cmd_run(args) -> int:
     if args.scene is not None:
         scene = load_scene(args.scene)
         changes = {k: getattr(args, k) for k in ("n", "seed") if getattr(args, k) is not None}
+        if args.interaction is not None:
+            changes["params"] = dataclasses.replace(scene.params, interaction=args.interaction)
         scene = scene.replace(**changes)
         default = scene.default_output()
     else:
-        if args.n is not None or args.seed is not None:
-            raise UsageError(f"{PROG} run: error: --n and --seed need the scene; a checkpoint alone resumes its own "
-                             f"run (see {PROG} run --help)")
+        if args.n is not None or args.seed is not None or args.interaction is not None:
+            raise UsageError(f"{PROG} run: error: --n, --seed and --interaction need the scene; a checkpoint alone "
+                             f"resumes its own run (see {PROG} run --help)")
         default = Path(args.resume.with_suffix(".nc").name)
     out = check_output(args.output or default, inputs=(args.scene, args.resume, args.checkpoint),
                         overwrite=args.overwrite)
@@ -168,8 +171,6 @@ def cmd_sweep(args) -> int:
 
     sweep = load_sweep(args.sweep)
     if args.n is not None:
-        import dataclasses
-
         sweep = dataclasses.replace(sweep, scene=sweep.scene.replace(n=args.n))
     out = check_output(args.output or sweep.default_output(), inputs=(args.sweep,), overwrite=args.overwrite)
     scheduler = "serial" if args.serial else args.scheduler
@@ -239,7 +240,8 @@ def _cmd_fit(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", surfaces.SurfaceScaleWarning)
         res = surfaces.fit(*tops, base=base, detrend_mode=args.detrend, min_prominence=min_prom, window=args.window,
-                           bootstrap=args.bootstrap, seed=args.seed, base_label=label, cutoff=cutoff)
+                           bootstrap=args.bootstrap, seed=args.seed, base_label=label, cutoff=cutoff,
+                           closure=closure)
     for w in caught:  # the scale warnings one line each; others go on as Python would show them
         if issubclass(w.category, surfaces.SurfaceScaleWarning):
             print(f"{PROG}: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
@@ -259,7 +261,14 @@ def _cmd_fit(args) -> int:
           f"rank correlation depth-radius {g['spearman_depth_radius']:.3f}")
     for name, unit in (("N", "m-2"), ("alpha", "1"), ("beta", "m"), ("R_m", "m"), ("R_sigma", "m")):
         print(f"  {name:8s} = {getattr(p, name):.5g} ± {se[name]:.2g} {unit}")
-    print(f"  not identified ({', '.join(surfaces.NOT_IDENTIFIED)}): from {res.source_of_rest}")
+    rest = surfaces.NOT_IDENTIFIED
+    if res.pair is not None:  # two surfaces: e and the contact slopes (also in the scene's comments)
+        from ..analysis.surfaces.pair import scene_comments
+
+        print(f"  {'e':8s} = {p.e:.5g} ± {se['e']:.2g} 1 (two surfaces, {res.pair['n_contacts']} summits in contact)")
+        print("  " + scene_comments(res.pair)[1][2:])
+        rest = tuple(n for n in rest if n != "e")
+    print(f"  not identified ({', '.join(rest)}): from {res.source_of_rest}")
     for line in res.scale.lines():
         print(f"  {line}")
     if args.plot is not None:

@@ -32,6 +32,17 @@ def _int_at_least(lo):
 _positive_int, _seed = _int_at_least(1), _int_at_least(0)
 
 
+def _non_negative_float(text):
+    """An argparse type: a finite real >= 0, with an error that names the value and the valid range."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (v >= 0.0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"{text} is out of range (valid range: finite real >= 0)")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     from ..version import __version__
 
@@ -53,6 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "else <scene name>.nc; with --resume alone, <checkpoint name>.nc)")
     r.add_argument("--n", type=_positive_int, help="sampled asperities (overrides [run] n)")
     r.add_argument("--seed", type=_seed, help="sampling seed (overrides [run] seed)")
+    r.add_argument("--interaction", type=_non_negative_float, metavar="X",
+                   help="strength of the mean-field elastic interaction between contacts, 0: none, 1: the "
+                        "mean-field estimate (overrides [parameters] interaction)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--overwrite", action="store_true", help="replace an existing run file")
     r.add_argument("--checkpoint", type=Path, metavar="CK.npz",

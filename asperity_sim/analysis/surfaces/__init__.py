@@ -5,7 +5,14 @@
 :mod:`~asperity_sim.analysis.surfaces.scale` (the cutoff filter, the height step, the automatic cutoff),
 :mod:`~asperity_sim.analysis.surfaces.diagnosis` (at which scale a fit describes the surface, and its warnings),
 :mod:`~asperity_sim.analysis.surfaces.fitting` (InterfaceParams and populations from summits) and
-:mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas).
+:mod:`~asperity_sim.analysis.surfaces.bem` (the boundary-element solution, tamaas),
+:mod:`~asperity_sim.analysis.surfaces.pair` (what two surfaces tell beyond heights: e and the contact slopes).
+For the comparison with exact contact mechanics (``scenarios/exact_contact.py``):
+:mod:`~asperity_sim.analysis.surfaces.elliptic` (elliptic summits, the Hertz elliptic contact),
+:mod:`~asperity_sim.analysis.surfaces.contact_scale` (summit curvatures at the scale of the contacts),
+:mod:`~asperity_sim.analysis.surfaces.variants` (the model variants at given pressures),
+:mod:`~asperity_sim.analysis.surfaces.tangential` (the frictional boundary-element solution) and
+:mod:`~asperity_sim.analysis.surfaces.shear` (the ``mdr`` law at a pressure and shear tractions).
 """
 
 from ...errors import SurfaceError, SurfaceScaleWarning

@@ -51,6 +51,8 @@ class FitResult:
     surface : the composite Surface at the fit's scale (filtered at the cutoff, if any)
     settings : detrend, min_prominence, window, cutoff, bootstrap size, seed
     scale : ScaleReport, at which scale the fit describes the surface, and its warnings
+    pair : with two surfaces, :func:`.pair.pair_statistics` at the scene's closure (e and the contact
+           slopes with their standard errors; e is then fitted), else None
     """
 
     params: InterfaceParams
@@ -63,6 +65,7 @@ class FitResult:
     surface: Surface | None = None
     settings: dict = field(default_factory=dict)
     scale: ScaleReport | None = None
+    pair: dict | None = None
 
     def source_of(self, name: str) -> str:
         """Where the value of parameter ``name`` came from (one line, for scene comments)."""
@@ -81,6 +84,10 @@ class FitResult:
             se = format_quantity(self.stderr[name], unit) if unit != "1" else f"{self.stderr[name]:.3g}"
             how_se = "Poisson, sqrt(n)/area" if name == "N" else f"bootstrap, {s.get('bootstrap')} resamples"
             return f"fitted: {how[name]}; stderr {se} ({how_se})"
+        if name == "e" and self.pair is not None:
+            return (f"fitted from the two surfaces: ratio of their mean curvatures at the {self.pair['n_contacts']} "
+                    f"summits in contact at {self.pair['closure'] * 1e6:.3g} um (the e of the mean k_e); stderr "
+                    f"{self.pair['e_stderr']:.2g} (bootstrap, {s.get('bootstrap')} resamples)")
         return f"not identified from topography: {self.source_of_rest}"
 
 
@@ -106,7 +113,8 @@ def _scaled(surf, cutoff, window, min_prominence):
 
 def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_mode: str = "plane",
         min_prominence: float = 0.0, window: int = 1, bootstrap: int = 200, seed: int = 0,
-        base_label: str | None = None, cutoff: float | str | None = None) -> FitResult:
+        base_label: str | None = None, cutoff: float | str | None = None,
+        closure: float | None = None) -> FitResult:
     """Fit N, alpha, beta, R_m, R_sigma to the summits of a topography (or of two, summed), and
     summit_offset (the height of the summits' mean plane above the surface's) to its heights.
 
@@ -118,6 +126,8 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
         the summits are found (:func:`~asperity_sim.analysis.surfaces.scale.s_filter`), "auto"
         (:func:`~asperity_sim.analysis.surfaces.scale.auto_cutoff`) or None (the raw map)
     bootstrap : resamples of the summits for the standard errors (>= 10)
+    closure [m] : with two surfaces, the closure at which e and the contact slopes are measured (default:
+        the scene's, :func:`default_closure`); e is then fitted (:mod:`.pair`)
 
     The result's ``scale`` says at which scale the fit describes the surface; each threshold it
     passes is also issued as a :class:`~asperity_sim.errors.SurfaceScaleWarning`.
@@ -174,8 +184,17 @@ def fit(topography, other=None, *, base: InterfaceParams | str = "R1", detrend_m
                           window=window, cutoff=cut, cutoff_choice=choice, cutoff_note=note, ladder=ladder)
     for message in report.warnings:
         warnings.warn(f"{surf.source}: {message}", SurfaceScaleWarning, stacklevel=2)
+    pair = None
+    if len(inputs) > 1:  # two surfaces: e and the contact slopes (only second differences of h1 are used,
+        from .pair import pair_statistics  # so its detrending, plane or mean, does not matter)
+
+        at = default_closure(params) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
+        first = composite(inputs[0], None, detrend_mode)
+        first = first if cut is None else s_filter(first, cut)  # at the fit's scale, as the summits
+        pair = pair_statistics(first, summits, params, at, bootstrap, seed)
+        params, stderr = params.replace(e=pair["e"]), {**stderr, "e": pair["e_stderr"]}
     return FitResult(params, stderr, goodness, summits, source_of_rest=source, surface=surf, settings=settings,
-                     scale=report)
+                     scale=report, pair=pair)
 
 
 # -- empirical population --------------------------------------------------------------
@@ -230,6 +249,7 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
     (default: the depth of the highest 10 % of the summits, :func:`default_closure`).
     """
     from ...units import format_quantity
+    from .pair import scene_comments as pair_comments
 
     p = result.params
     closure = default_closure(p) if closure is None else check_real("closure [m]", closure, 0.0, None, lo_open=True)
@@ -244,6 +264,7 @@ def scene_text(result: FitResult, *, closure: float | None = None, increments: i
              f"{g['spearman_depth_radius']:.3f} (the model takes them independent)",
              *(f"# {line}" for line in (result.scale.lines() if result.scale is not None else ())),
              *(f"# WARNING: {w}" for w in (result.scale.warnings if result.scale is not None else ())),
+             *(pair_comments(result.pair) if result.pair is not None else []),
              f"# Parameters not identified by a topography come from {result.source_of_rest}.",
              "# Run:  asperity-sim run THIS_FILE.toml",
              f"title = {_toml_string('normal closure of the fitted interface (' + str(s.get('source', '?')) + ')')}",
