@@ -136,3 +136,14 @@ def prefetch(typingctx, a, i, j, k):
         return context.get_dummy_value()
 
     return numba.types.void(a, i, j, k), codegen
+
+
+@kernel(inline="always")
+def copy_into(dest, src):
+    """``dest[:] = src`` for 1-D arrays of the same length, as a loop.
+
+    numba compiles an array-to-slice assignment with a shape-mismatch error whose message it formats
+    at run time (string conversion, joins): about 2 s of every first run for one line.
+    """
+    for i in range(src.shape[0]):
+        dest[i] = src[i]

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
+from ..vectormath import copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
     BLOCK,
@@ -142,7 +143,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                     dn_c[sl] = dn
                     code[sl] = new
         acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
-        partial[ic, :] = acc
+        copy_into(partial[ic], acc)
 
 
 @kernel(parallel=True)
@@ -214,7 +215,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
             acc[C_TR + new] += 1.0
             dn_c[sl] = dn
             code[sl] = new
-        partial[ic, :] = acc
+        copy_into(partial[ic], acc)
 
 
 @kernel(parallel=True)

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
+from ..vectormath import copy_into
 from .contact import (
     accumulate,
     add_values,
@@ -104,7 +105,7 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
                 accumulate(acc, ct, st, cp, sp, trial(dn, dds, ddt, dn_c[sl], 0.0, R[j], consts, arrays, sl, False),
                            ds, rho, th1, dn, R[j])
                 acc[I_TH] += th
-            partial[ic, :] = acc
+            copy_into(partial[ic], acc)
             continue
         geo = np.empty((N_GEO, BLOCK))
         out = np.empty((13, BLOCK))
@@ -121,7 +122,7 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
             for i in range(m):  # vectorised
                 slot_values(vals, i, geo, out)
             add_values(vals, m, acc)
-        partial[ic, :] = acc
+        copy_into(partial[ic], acc)
 
 
 @template(error_model="numpy")
@@ -207,7 +208,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
         if index == 1:
             n_listed[ic] = m
         if ic < n_chunks:
-            partial[ic, :] = acc
+            copy_into(partial[ic], acc)
             spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
 
 

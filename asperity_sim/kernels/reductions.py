@@ -17,6 +17,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
+from ..vectormath import copy_into
 from .contact import (
     accumulate,
     add_values,
@@ -111,7 +112,7 @@ def chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, d
             values_follow(vals, i, inp[X_X * BLOCK + i], inp[X_CP * BLOCK + i], inp[X_SP * BLOCK + i],
                           inp[X_R * BLOCK + i], inp[X_U * BLOCK + i], d2, d3, closure, dc, k_e, consts)
         add_values(vals, m, acc)
-    partial[ic, :] = acc
+    copy_into(partial[ic], acc)
 
 
 @template(inline="always", error_model="numpy")
@@ -131,7 +132,7 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
             continue
         accumulate(acc, ct, st, cp, sp, local(dn, ds, dt, R[j], consts), ds, dn, th1, dn, R[j])
         acc[I_TH] += th
-    partial[ic, :] = acc
+    copy_into(partial[ic], acc)
 
 
 @template(inline="always", error_model="numpy")

@@ -23,6 +23,7 @@ import numba
 import numpy as np
 
 from ..jit import kernel
+from ..vectormath import copy_into
 
 BITS = 32  # digits per coordinate (N_MAX < 2^31 points); held in int64: uint64 -> float is slow on x86-64
 DIM = 4
@@ -153,7 +154,7 @@ def _cell_directions(v, m):
 @kernel(inline="always")
 def net_point(W, shift, s, c, x):
     """x = the BITS-bit digits of the point in first-coordinate cell c (see :func:`net_directions`)."""
-    x[:] = shift
+    copy_into(x, shift)
     _xor_columns(x, W, c ^ s)
 
 
