@@ -95,16 +95,21 @@ def resolution_table(ds) -> str:
     return "\n".join(lines)
 
 
+def shear_runs(ds, fam):
+    """(j, the family's data at shear load j, the pairs that have it) for each shear load with a BEM solution."""
+    f = ds.sel(family=fam)
+    for j in range(ds.sizes["shear_load"]):
+        g = f.sel(shear_load=j)
+        have = np.isfinite(g.bem_shear_stiffness.values)
+        if have.any():
+            yield j, g, have
+
+
 def shear_tables(ds) -> str:
     out = []
     models = [str(m) for m in ds.shear_model.values]
     for fam in ds.family.values:
-        f = ds.sel(family=fam)
-        for j in range(ds.sizes["shear_load"]):
-            g = f.sel(shear_load=j)
-            have = np.isfinite(g.bem_shear_stiffness.values)
-            if not have.any():
-                continue
+        for j, g, have in shear_runs(ds, fam):
             c = g.bem_shear_contact_fraction.values[have, 0]
             out.append(f"\nShear, family {fam}, p = {float(g.shear_pressure) / 1e6:.3g} MPa (BEM contact "
                        f"{100 * c.mean():.3g} %), {int(have.sum())} pairs; ratios model / BEM, mean (range):\n")
@@ -177,12 +182,7 @@ def plot_shear(ds):
     fig, ax = plt.subplots(2, nf, figsize=(5.5 * nf, 8.5), squeeze=False)
     marks = ("o", "s", "^")
     for c, fam in enumerate(sheared):
-        f = ds.sel(family=fam)
-        for j in range(ds.sizes["shear_load"]):
-            g = f.sel(shear_load=j)
-            have = np.isfinite(g.bem_shear_stiffness.values)
-            if not have.any():
-                continue
+        for j, g, have in shear_runs(ds, fam):
             mp = float(ds.attrs["mu"]) * float(g.shear_pressure)
             q = g.bem_shear_traction.values[have] / mp
             contact = g.bem_shear_contact_fraction.values[have, :1]

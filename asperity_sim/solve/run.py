@@ -21,8 +21,7 @@ import numpy as np
 
 from .. import laws
 from ..checks import check_delta
-from ..errors import (ConvergenceError, Deadline, InteractionRunawayError, LawDomainWarning, OutputWriteError,
-                      WallTimeExceededError)
+from ..errors import ConvergenceError, Deadline, LawDomainWarning, OutputWriteError, WallTimeExceededError
 from ..geometry import closure
 from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked, serial_fits
 from ..kernels.state import ContactState
@@ -33,7 +32,7 @@ from ..sampling.population import Population
 from ..version import __version__
 from . import run_checkpoint
 from .domain import DomainMonitor
-from .solver import SolveResult, solve_increment
+from .solver import solve_increment
 from .stepping import (
     TRUST,
     Position,
@@ -307,8 +306,6 @@ class Run:
                             f"stage {i_stage} ({stage.name or 'unnamed'}) at {s:.4g} of the stage, after "
                             f"{rec.size - 1} converged increments")
                         raise failure from None
-                    except InteractionRunawayError as err:  # the predictor is beyond the load's reach: cut back
-                        result = SolveResult(False, 0, math.inf, 0.0, str(err), self.ev)
                     if not result.converged:
                         cuts += 1
                         if result.unreachable or cuts > settings.max_cutbacks or ds * 0.5 < smallest:

@@ -97,7 +97,7 @@ def _max_abs(values):
 
 @dataclass
 class SolveResult:
-    """Outcome of one increment, like scipy's OdeResult."""
+    """Outcome of one increment, like scipy's OdeResult (``evaluation`` None: the guess could not be evaluated)."""
 
     converged: bool
     iterations: int
@@ -138,7 +138,10 @@ def _solve(evaluate, delta_guess, free, target, length_scale, settings):
     free = np.asarray(free, dtype=bool)
     mask = free.tolist()
     x = np.array(delta_guess, dtype=float)
-    ev = evaluate(x)
+    try:
+        ev = evaluate(x)
+    except InteractionRunawayError as err:  # the guess is beyond the load's reach: no evaluation, the caller cuts back
+        return SolveResult(False, 0, math.inf, 0.0, str(err), None)
     if not any(mask):
         return SolveResult(True, 0, 0.0, 0.0, "displacement controlled", ev)
     if sum(mask) == 1:

@@ -295,7 +295,8 @@ def increment_failure(result, ev, free, start_stress, end, target_stress, i_stag
     reached = ", ".join(f"sigma_{k + 1} = {ev.stress[k]:.6g} Pa" for k in ramped)
     k_now = effective_stiffness(ev, free, ramped)
     softened = k_ref is not None and k_ref > 0 and k_now < 0.1 * k_ref
-    if result.unreachable or softened or _saturated(ev, free) or _saturated(result.evaluation, free):
+    if result.unreachable or softened or _saturated(ev, free) or (result.evaluation is not None
+                                                                  and _saturated(result.evaluation, free)):
         return StressNotReachableError(
             f"{names} cannot be reached: {where}; the interface carried at most {reached} "
             f"(at Delta = {np.array2string(ev.delta, precision=4)} m) and its stiffness in the stress-controlled "

@@ -51,8 +51,7 @@ def curvature_at_scales(surface, summits: Summits, scales_px=SCALES_PX):
     h = s.heights
     nx, ny = h.shape
     dx, dy = s.pixel_size
-    ii = np.rint(summits.x / dx).astype(int)
-    jj = np.rint(summits.y / dy).astype(int)
+    ii, jj = summits.pixel_indices(s.pixel_size)
     shape = (summits.n, len(scales_px))
     k_max, k_min, apex = np.empty(shape), np.empty(shape), np.empty(shape)
     for c, rho in enumerate(scales_px):

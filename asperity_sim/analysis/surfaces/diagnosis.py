@@ -153,8 +153,7 @@ def scale_report(scaled: Surface, summits: Summits, *, raw: Surface, steps=(), w
     steps : quantisation steps [m] (or None) of the surfaces as read
     """
     dx, dy = scaled.pixel_size
-    ii = np.rint(summits.x / dx).astype(int)
-    jj = np.rint(summits.y / dy).astype(int)
+    ii, jj = summits.pixel_indices(scaled.pixel_size)
     kx, ky, _ = _curvatures(scaled, ii, jj, 1)
     kx2, ky2, ok2 = _curvatures(scaled, ii, jj, 2)
     k1 = 0.5 * (kx + ky)

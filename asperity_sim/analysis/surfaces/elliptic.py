@@ -110,8 +110,7 @@ def principal_curvatures(surface, summits: Summits):
     h = s.heights
     nx, ny = h.shape
     dx, dy = s.pixel_size
-    ii = np.rint(summits.x / dx).astype(int)
-    jj = np.rint(summits.y / dy).astype(int)
+    ii, jj = summits.pixel_indices(s.pixel_size)
     ip, im, jp, jm = (ii + 1) % nx, (ii - 1) % nx, (jj + 1) % ny, (jj - 1) % ny
     z = h[ii, jj]
     hxx = (h[ip, jj] - 2 * z + h[im, jj]) / dx**2

@@ -47,8 +47,7 @@ def curvature_ratio(first: Surface, summits: Summits):
     h = first.heights
     nx, ny = h.shape
     dx, dy = first.pixel_size
-    ii = np.rint(summits.x / dx).astype(int)
-    jj = np.rint(summits.y / dy).astype(int)
+    ii, jj = summits.pixel_indices(first.pixel_size)
     z = h[ii, jj]
     hxx = (h[(ii + 1) % nx, jj] - 2 * z + h[(ii - 1) % nx, jj]) / dx**2
     hyy = (h[ii, (jj + 1) % ny] - 2 * z + h[ii, (jj - 1) % ny]) / dy**2

@@ -49,6 +49,11 @@ class Summits:
     def n(self) -> int:
         return self.height.size
 
+    def pixel_indices(self, pixel_size=None):
+        """(i, j): the grid indices of the summits on a map of ``pixel_size`` (dx, dy) [m] (default: their own)."""
+        dx, dy = self.pixel_size if pixel_size is None else pixel_size
+        return np.rint(self.x / dx).astype(int), np.rint(self.y / dy).astype(int)
+
     @property
     def depth(self) -> np.ndarray:
         return self.height[0] - self.height
