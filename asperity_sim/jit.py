@@ -90,8 +90,8 @@ class CompileNotice(event.Listener):
 
     numba announces every compile that its on-disk cache could not serve (``numba:compile``);
     a kernel of the package compiled for the first time in this process starts its group's line:
-    the law's name for the reductions specialised for a law (``slot_pass__mdr_<fingerprint>``),
-    "shared" for the others.  Nothing is said when stderr is not a terminal (``isatty``).
+    the law and angle policy of the reductions specialised for them
+    (``slot_pass__mdr_follow_<fingerprint>``), "shared" for the others.  Nothing is said when stderr is not a terminal (``isatty``).
     """
 
     def __init__(self, stream=None, isatty=None):
@@ -108,7 +108,8 @@ class CompileNotice(event.Listener):
         if group in self.said or not (self.isatty or stream.isatty)():
             return
         self.said.add(group)
-        what = "the shared kernels" if group == "shared" else f"the {group} law's kernels"
+        law, _, policy = group.rpartition("_")
+        what = "the shared kernels" if group == "shared" else f"the {law} law's kernels (policy {policy})"
         print(f"asperity_sim: compiling {what} (first run after an install or an upgrade only: later runs load "
               "them from numba's cache; `asperity-sim warmup` compiles them ahead)", file=stream, flush=True)
 

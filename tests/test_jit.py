@@ -55,11 +55,13 @@ def test_templates_carry_their_options_and_placeholders_are_module_names():
 
 def test_each_law_gets_its_own_compiled_copies_named_by_law_and_fingerprint():
     paper, mdr = specialise.kernels("paper"), specialise.kernels("mdr")
+    birth = specialise.kernels("paper", birth=True)
     assert set(paper) == set(specialise.templates_of(reductions))
     assert set(mdr) == set(specialise.templates_of(history)) | set(specialise.templates_of(commit))
     assert paper["reduce_parallel"].py_func.__qualname__ == (
-        f"reduce_parallel__paper_{specialise.law_fingerprint(laws.get('paper'))}")
-    assert specialise.kernels("paper") is paper  # built once
+        f"reduce_parallel__paper_follow_{specialise.law_fingerprint(laws.get('paper'))}")
+    assert birth["reduce_parallel"].py_func.__qualname__.startswith("reduce_parallel__paper_birth_")
+    assert specialise.kernels("paper") is paper and specialise.kernels("paper", birth=True) is birth  # built once
 
 
 EDITS = {  # file in the copy: (text, replacement) -- each a callee in another file than its callers
@@ -125,18 +127,19 @@ def test_a_first_compile_says_so_once_per_group_on_a_terminal():
 
     out = io.StringIO()
     notice = jit.CompileNotice(stream=out, isatty=lambda: True)
-    for module, name in (("asperity_sim.kernels.history", "slot_pass__mdr_0123456789ab"),
-                         ("asperity_sim.kernels.commit", "commit_slots__mdr_0123456789ab"),
+    for module, name in (("asperity_sim.kernels.history", "slot_pass__mdr_follow_0123456789ab"),
+                         ("asperity_sim.kernels.commit", "commit_slots__mdr_follow_0123456789ab"),
                          ("asperity_sim.sampling.draws", "inverse_cdfs__0123456789ab"),
-                         ("asperity_sim.kernels.history", "slot_pass__test_gain_0123456789ab"),
+                         ("asperity_sim.kernels.history", "slot_pass__test_gain_birth_0123456789ab"),
                          ("numpy_user_module", "other__0123456789ab")):
         notice.on_start(Event(fake(module, name)))
     lines = out.getvalue().splitlines()
     assert [line.split(" (")[0] for line in lines] == [
         "asperity_sim: compiling the mdr law's kernels", "asperity_sim: compiling the shared kernels",
         "asperity_sim: compiling the test_gain law's kernels"]
+    assert "(policy follow)" in lines[0] and "(policy birth)" in lines[2]
     quiet = io.StringIO()
     silent = jit.CompileNotice(stream=quiet, isatty=lambda: False)
-    silent.on_start(Event(fake("asperity_sim.kernels.history", "slot_pass__mdr_0123456789ab")))
+    silent.on_start(Event(fake("asperity_sim.kernels.history", "slot_pass__mdr_follow_0123456789ab")))
     assert quiet.getvalue() == ""
     assert isinstance(jit.NOTICE, event.Listener)

@@ -20,6 +20,7 @@ from ..jit import kernel, template
 from ..vectormath import copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
+    BIRTH,
     BLOCK,
     C_DISS,
     C_EVENTS,
@@ -84,7 +85,6 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
     known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
@@ -99,14 +99,14 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
         for b0 in range(lo, hi, BLOCK):
             m = min(hi, b0 + BLOCK) - b0
-            if has_birth:
+            if BIRTH:
                 for i in range(m):
                     j = asp[b0 + i]
                     if j < 0:
                         continue
                     cp, sp = cos_phi[j], sin_phi[j]
                     th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth,
-                                          has_birth)
+                                          BIRTH)
                     ct, st = math.cos(th), math.sin(th)
                     geo[G_DN, i], _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
                     _, geo[G_DDS, i], geo[G_DDT, i] = local_displacement(D0, D1, D2, ct, st, cp, sp)

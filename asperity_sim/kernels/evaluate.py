@@ -239,7 +239,7 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
     tb = EMPTY if state.theta_birth is None else state.theta_birth
     out = np.empty(N_OUT)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
-    kern = kernels(law)
+    kern = kernels(law, birth=tb.size > 0)
     if law.path_independent:
         # a population that fits the serial kernel: it finds its own bounds
         serial = serial_fits(pop)
@@ -390,7 +390,7 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
     tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else EMPTY
     out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
            "state": np.empty(pop.n, dtype=np.int8)}
-    kernels(lw)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
+    kernels(lw, birth=tb.size > 0)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
                                   lw.constants(pop.params, lw.options()), tb, out["delta_n"], out["theta"], out["force"],
                                   out["state"])
     return out

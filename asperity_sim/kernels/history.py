@@ -29,6 +29,7 @@ from .contact import (
     slot_values,
 )
 from .layout import (
+    BIRTH,
     BLOCK,
     CHUNK,
     G_DDS,
@@ -82,21 +83,20 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
     for kk in numba.prange(n_chunks):
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_ACC)
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
-        if has_birth:
+        if BIRTH:
             for sl in range(lo, hi):
                 j = asp[sl]
                 if j < 0:
                     continue
                 cp, sp = cos_phi[j], sin_phi[j]
                 th, th1 = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth,
-                                        has_birth)
+                                        BIRTH)
                 ct, st = math.cos(th), math.sin(th)
                 dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
                 if dn <= 0.0:
@@ -218,10 +218,9 @@ def snapshot_slots(slot_of, dn_c, code, r, R, u, cos_phi, sin_phi, delta, r_o, k
     """Per-asperity overlap, angle, global force of the committed springs and state code (call right after commit)."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
     for j in numba.prange(r.size):
         cp, sp = cos_phi[j], sin_phi[j]
-        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, has_birth)
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, BIRTH)
         ct, st = math.cos(th), math.sin(th)
         dn, _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
         delta_n_out[j] = dn

@@ -18,6 +18,10 @@ import numpy as np
 from ..jit import kernel
 
 CHUNK = 2048
+BIRTH = False
+"""The angle policy a template is compiled for (True: birth, False: follow): a placeholder bound per copy by
+:mod:`asperity_sim.kernels.specialise`.  numba prunes the branches of a constant before it inlines and types
+them, so a copy never compiles the other policy's loops."""
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count,

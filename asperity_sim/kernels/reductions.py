@@ -28,7 +28,8 @@ from .contact import (
     global_force_tangent,
     store_values,
 )
-from .layout import BLOCK, CHUNK, I_TH, N_ACC, N_IN, N_VAL, O_NA, X_CP, X_R, X_SP, X_U, X_X, chunk_stride, finish
+from .layout import (BIRTH, BLOCK, CHUNK, I_TH, N_ACC, N_IN, N_VAL, O_NA, X_CP, X_R, X_SP, X_U, X_X, chunk_stride,
+                     finish)
 from .reach import bounds, cannot_touch, may_touch_follow
 
 # ---- the law's kernel: a placeholder, bound to the law's own by kernels.specialise ----
@@ -135,17 +136,6 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
     copy_into(partial[ic], acc)
 
 
-@template(inline="always", error_model="numpy")
-def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, has_birth,
-              tan_max, partial):
-    """Row ic of ``partial`` for a path-independent law, by policy."""
-    if has_birth:
-        chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
-                    tan_max, partial)
-    else:
-        chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial)
-
-
 @template(parallel=True, error_model="numpy")
 def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial):
     """Partial sums of a path-independent law over the first n_active asperities, chunks in parallel.
@@ -155,12 +145,16 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)
     for kk in numba.prange(n_chunks):
-        chunk_any((kk * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts,
-                  theta_birth, has_birth, tan_max, partial)
+        ic = (kk * stride) % n_chunks
+        if BIRTH:
+            chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                        tan_max, partial)
+        else:
+            chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max,
+                         partial)
 
 
 @template(error_model="numpy")
@@ -174,15 +168,18 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
     displacement-controlled stage of a path-independent law are independent, so a small
     population need not pay a round trip through Python for each of them.
     """
-    has_birth = theta_birth.size > 0
     for i in range(deltas.shape[0]):
         d1, d2, d3 = deltas[i, 0], deltas[i, 1], deltas[i, 2]
         n_active, tan_max = bounds(r, R_min, r_o, k_e, beta, deltas[i], theta_birth)
         closure, dc = closure_and_slope(r_o, d1)
         n_chunks = (n_active + CHUNK - 1) // CHUNK
         for ic in range(n_chunks):
-            chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
-                      has_birth, tan_max, partial)
+            if BIRTH:
+                chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                            tan_max, partial)
+            else:
+                chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max,
+                             partial)
         finish(partial, n_chunks, n, scale, out[i])
         out[i, O_NA] = n_active
 
@@ -193,10 +190,9 @@ def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_bir
     """Per-asperity overlap, orientation, global force and state code of a path-independent law."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    has_birth = theta_birth.size > 0
     for j in numba.prange(r.size):
         cp, sp = cos_phi[j], sin_phi[j]
-        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, has_birth)
+        th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, BIRTH)
         ct, st = math.cos(th), math.sin(th)
         dn, ds, dt = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
         delta_n_out[j] = dn

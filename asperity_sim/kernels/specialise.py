@@ -1,6 +1,6 @@
 """The reduction kernels of one law: templates compiled with the law's kernels bound in.
 
-Owns :func:`kernels` (a law -> its compiled reductions, built once per law) and
+Owns :func:`kernels` (a law and an angle policy -> its compiled reductions, built once each) and
 :func:`specialise`, which builds them.
 
 A template (``@template(...)``, :mod:`asperity_sim.jit`) is a plain function of
@@ -9,9 +9,10 @@ or :mod:`~asperity_sim.kernels.commit` (history laws) that calls the law through
 defined at the top of its module: ``local``; ``trial`` and ``trial_block``; ``commit_law`` and
 ``commit_block``.  For each law every template of its family is copied with globals in which
 the placeholders are that law's kernels (a law without block kernels gets :func:`each_contact`
-and :func:`each_commit`, which call its per-contact kernels) and every template name is the
-law's own copy, then compiled with the options of its decorator under the name
-``<template>__<law>_<fingerprint>``.  A closure over the law's kernels, or kernels passed as
+and :func:`each_commit`, which call its per-contact kernels), ``BIRTH`` is the angle policy
+(a constant: the other policy's branches are pruned before numba types them, so a scene
+compiles only its own) and every template name is the law's own copy, then compiled with the
+options of its decorator under the name ``<template>__<law>_<policy>_<fingerprint>``.  A closure over the law's kernels, or kernels passed as
 arguments, would defeat numba's on-disk cache; named copies of plain functions keep it, each
 law cached apart.  The fingerprint (:func:`law_fingerprint`) covers every kernel source of the
 package and the law's own files, so no edit in a copy's call graph leaves it stale.
@@ -65,13 +66,13 @@ def law_fingerprint(law: laws.Law) -> str:
     return h.hexdigest()[:12]
 
 
-def specialise(modules, law: laws.Law) -> dict:
-    """The templates of ``modules`` compiled for ``law`` (name -> numba dispatcher)."""
+def specialise(modules, law: laws.Law, birth: bool = False) -> dict:
+    """The templates of ``modules`` compiled for ``law`` under policy birth or follow (name -> numba dispatcher)."""
     bindings = law_kernels(law)
-    label = f"{law.name}-{law_fingerprint(law)}"
+    label = f"{law.name}-{'birth' if birth else 'follow'}-{law_fingerprint(law)}"
     namespaces, out = [], {}
     for module in modules:
-        namespace = {**vars(module), **{k: v for k, v in bindings.items() if callable(v)}}
+        namespace = {**vars(module), **{k: v for k, v in bindings.items() if callable(v)}, "BIRTH": bool(birth)}
         namespaces.append(namespace)
         for name, f in templates_of(module).items():
             copy = types.FunctionType(f.__code__, namespace, f.__name__, f.__defaults__, f.__closure__)
@@ -84,10 +85,12 @@ def specialise(modules, law: laws.Law) -> dict:
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(law: laws.Law) -> dict:
-    return specialise(FAMILIES["path_independent" if law.path_independent else "history"], law)
+def _compiled(law: laws.Law, birth: bool) -> dict:
+    return specialise(FAMILIES["path_independent" if law.path_independent else "history"], law, birth)
 
 
-def kernels(law) -> dict:
-    """The reductions compiled for ``law`` (a registered name or a :class:`~asperity_sim.laws.Law`), built once."""
-    return _compiled(laws.get(law))
+def kernels(law, birth: bool = False) -> dict:
+    """The reductions compiled for ``law`` (a registered name or a :class:`~asperity_sim.laws.Law`) under policy
+    birth (``birth``) or follow, built once.  Each runs only on the angles of its policy: ``theta_birth`` of
+    size n under birth, empty under follow."""
+    return _compiled(laws.get(law), bool(birth))

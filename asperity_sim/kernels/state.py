@@ -132,7 +132,7 @@ class ContactState:
 
     def _commit_history(self, delta, n_active, tan_max, tb, spans, geo) -> CommitResult:
         pop, p = self.pop, self.pop.params
-        kern = kernels(self.law)
+        kern = kernels(self.law, birth=tb.size > 0)
         n_slot_chunks = (self.n_slots + CHUNK - 1) // CHUNK
         n_pop_chunks = (n_active + CHUNK - 1) // CHUNK
         if self._partial.shape[0] < n_slot_chunks + 1:
@@ -185,14 +185,14 @@ class ContactState:
         tb = EMPTY if self.theta_birth is None else self.theta_birth
         d = np.asarray(delta, dtype=float)
         if not self.has_history:
-            kernels(self.law)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e,
+            kernels(self.law, birth=tb.size > 0)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e,
                                                 self.consts, tb, out["delta_n"], out["theta"], out["force"],
                                                 out["state"])
             return out
         slot_of = np.full(pop.n, -1, dtype=np.int64)
         live = np.flatnonzero(self.asp[:self.n_slots] >= 0)
         slot_of[self.asp[live]] = live
-        kernels(self.law)["snapshot_slots"](slot_of, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
+        kernels(self.law, birth=tb.size > 0)["snapshot_slots"](slot_of, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
                                             pop.sin_phi, d, p.r_o, p.k_e, self.consts, self.arrays, tb,
                                             out["delta_n"], out["theta"], out["force"], out["state"])
         return out

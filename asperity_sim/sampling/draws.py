@@ -58,7 +58,7 @@ def gather(U, order, c0, c1, c2, c3):
         c0[i], c1[i], c2[i], c3[i] = U[j, 0], U[j, 1], U[j, 2], U[j, 3]
 
 
-@kernel(inline="always")
+@kernel()
 def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d):
     """(unit-scale gamma height, radius [m], u [rad], cos phi, sin phi) of the uniforms (p_r, p_R, p_u, p_phi),
     SPEC §2–§3 (Eq. 10).

@@ -12,7 +12,7 @@ import numpy as np
 from ...jit import kernel
 from ..hertz import hertz_energy
 from .springs import FAST, LANES, continuing_commit, entering_tail, release, spacing, spring_range, state_code
-from .trial import contact_scales, springs
+from .trial import springs
 
 
 @kernel(error_model="numpy", fastmath=FAST)
@@ -23,29 +23,9 @@ def commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, 
     return out[8], out[9], out[10], out[11], out[12]
 
 
-@kernel(error_model="numpy", fastmath=FAST)
-def commit_springs_in_place(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh):
-    """:func:`commit_springs` writing the new springs over the committed ones ``w`` (they must fit).
-
-    One array for both, so that LLVM sees each spring read before it is written and vectorises.
-    """
-    out = springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, w, True)
-    return out[8], out[9], out[10], out[11], out[12]
-
-
-@kernel(error_model="numpy", fastmath=FAST)
-def committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h):
-    """:func:`springs` of a commit of a committed contact (dn > 0) whose springs fit, in place.
-
-    Returns (fits, code, work, stored, dissipation) [J] (:func:`committed_commit_scaled`).
-    """
-    c, q, f_n, k_n, n_in, rho, drho, n_c, e, e_c = contact_scales(dn, dn_c, R, h, E_star, lam)
-    return committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c)
-
-
 @kernel(inline="always", error_model="numpy")
 def committed_commit_scaled(dn, dds, ddt, dn_c, lam, mu, w, c, q, n_in, rho, drho, n_c, e, e_c):
-    """:func:`committed_commit` given the contact's :func:`contact_scales`.
+    """The commit of a committed contact (dn > 0) whose springs fit, in place, given its :func:`contact_scales`.
 
     The springs leaving contact are released, those continuing go through the lean loop, the
     few entering (or holding memory across the edge after coarsening) through the general
@@ -108,16 +88,16 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     dn <= 0: the contact is lost, its springs are released and its memory erased.  Energies
     [J] include the Hertz normal spring; ``stored`` is the contact's energy after the increment.
     ``scratch``: (2, 2 stored) floats for the new springs (a larger buffer is made when needed).
+
+    The general step, for every case: the common one, a committed contact whose springs fit, goes
+    through the lean loop of :func:`~asperity_sim.laws.mdr.blocks.mdr_commit_block` (the law's
+    ``commit_block``) and comes here only when they do not.
     """
     E_star, lam, mu, k, dn_floor = consts
     w_all, h_all = arrays
     w = w_all[sl]
     n_store = w.shape[1]
     q_unit = 2.0 * E_star / lam
-    if dn > 0.0 and not fresh:  # the common case: springs that fit, written over the committed ones
-        fits, code, work, stored, diss = committed_commit(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h_all[sl])
-        if fits:
-            return code, work, stored, diss, 0
     e_old = 0.0 if fresh else hertz_energy(dn_c, R, E_star)
     if dn <= 0.0:
         h = h_all[sl]
@@ -129,28 +109,19 @@ def mdr_commit(dn, dds, ddt, dn_c, dn_ref, R, consts, arrays, sl, fresh, scratch
     n_need = entering_tail(0, dn, dn_c, h * h / R)[0]
     coarsenings = 0
     stored = 0.0
-    if n_need <= n_store:  # a fresh contact that fits
-        n_springs, n_slip, work, _, diss = commit_springs_in_place(
-            dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh)
-        code = state_code(n_springs, n_slip)
-        for i in range(n_springs):
-            stored += float(w[0, i]) ** 2 + float(w[1, i]) ** 2
-        w[:, n_springs:] = 0.0
-    else:
-        buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
-        n_springs, n_slip, work, _, diss = commit_springs(
-            dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
-        code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
-        while n_springs > n_store:  # coarsen: the contact outgrew its springs
-            diss += q_unit * h * merge_pairs(buf, n_springs)
-            h *= 2.0
-            n_springs = (n_springs + 1) // 2
-            coarsenings += 1
-        for i in range(n_store):
-            a, b = (buf[0, i], buf[1, i]) if i < n_springs else (0.0, 0.0)
-            w[0, i] = a
-            w[1, i] = b
-            stored += a * a + b * b
+    buf = scratch if n_need <= scratch.shape[1] else np.zeros((2, n_need))
+    n_springs, n_slip, work, _, diss = commit_springs(dn, dds, ddt, dn_c, R, E_star, lam, mu, w, h, scaled, fresh, buf)
+    code = state_code(n_springs, n_slip)  # of the springs as computed, before any coarsening
+    while n_springs > n_store:  # coarsen: the contact outgrew its springs
+        diss += q_unit * h * merge_pairs(buf, n_springs)
+        h *= 2.0
+        n_springs = (n_springs + 1) // 2
+        coarsenings += 1
+    for i in range(n_store):
+        a, b = (buf[0, i], buf[1, i]) if i < n_springs else (0.0, 0.0)
+        w[0, i] = a
+        w[1, i] = b
+        stored += a * a + b * b
     h_all[sl] = h
     e_new = hertz_energy(dn, R, E_star)
     return code, work + e_new - e_old, 0.5 * q_unit * h * stored + e_new, diss, 1 if coarsenings else 0
