@@ -50,7 +50,7 @@ def test_templates_carry_their_options_and_placeholders_are_module_names():
         for name in placeholders:  # defined in the module, never compiled as written
             with pytest.raises(NotImplementedError):
                 getattr(module, name)(*([None] * getattr(module, name).__code__.co_argcount))
-    assert specialise.templates_of(reductions)["reduce_parallel"].jit_options["parallel"] is True
+    assert specialise.templates_of(reductions)["reduce_parallel"].jit_options["nogil"] is True
 
 
 def test_each_law_gets_its_own_compiled_copies_named_by_law_and_fingerprint():

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
+from ..threads import run_chunks
 from ..vectormath import copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
@@ -72,10 +72,11 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
             res[0, i], res[1, i], res[2, i], res[3, i], res[4, i] = code, work, stored, diss, events
 
 
-@template(parallel=True, error_model="numpy")
+@template(nogil=True, error_model="numpy")
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-                 theta_birth, n_store, partial, slot_geo):
-    """Commit every committed contact at the converged ``delta``; sums (N_COMMIT) per chunk into ``partial``.
+                 theta_birth, n_store, partial, slot_geo, kk_lo, kk_hi):
+    """Commit the committed contacts of chunks kk_lo .. kk_hi (strided order) at the converged ``delta``; sums
+    (N_COMMIT) per chunk into ``partial``.
 
     A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
     Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`, or
@@ -88,7 +89,7 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
-    for kk in numba.prange(n_chunks):
+    for kk in range(kk_lo, kk_hi):
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_COMMIT)
         work = stored = diss = events = 0.0
@@ -146,9 +147,10 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
         copy_into(partial[ic], acc)
 
 
-@kernel(parallel=True)
-def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans):
-    """Flag (2) the asperities without a committed contact that touch at ``delta``; their count per chunk.
+@kernel(nogil=True)
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans, kk_lo, kk_hi):
+    """Flag (2) the asperities of chunks kk_lo .. kk_hi without a committed contact that touch at ``delta``; their
+    count per chunk.
 
     ``spans`` (chunks, 2), if not empty: where the trial's :func:`fresh_pass` at this same
     displacement and committed state found them, per chunk; only those ranges are tested (the
@@ -156,9 +158,8 @@ def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_m
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    n_chunks = (n_active + CHUNK - 1) // CHUNK
     known = spans.shape[0] > 0
-    for ic in numba.prange(n_chunks):
+    for ic in range(kk_lo, kk_hi):
         c = 0
         lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
         if known:
@@ -180,10 +181,11 @@ def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_m
         counts[ic] = c
 
 
-@template(parallel=True, error_model="numpy")
+@template(nogil=True, error_model="numpy")
 def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts,
-                 arrays, n_store, partial):
-    """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order)."""
+                 arrays, n_store, partial, kk_lo, kk_hi):
+    """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order), chunks
+    kk_lo .. kk_hi of them."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, _ = closure_and_slope(r_o, d1)
@@ -191,8 +193,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     # True as a run-time bool: with literal True here and False in the committed contacts' commit, numba would
     # compile the law's commit twice (once per argument type)
     fresh = m >= 0
-    n_chunks = (m + CHUNK - 1) // CHUNK
-    for ic in numba.prange(n_chunks):
+    for ic in range(kk_lo, kk_hi):
         acc = np.zeros(N_COMMIT)
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         for ii in range(ic * CHUNK, min(m, (ic + 1) * CHUNK)):
@@ -218,9 +219,15 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
         copy_into(partial[ic], acc)
 
 
-@kernel(parallel=True)
 def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):
-    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place.
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place (:func:`birth_angles_in`, every chunk)."""
+    run_chunks(birth_angles_in, (theta_birth.size + CHUNK - 1) // CHUNK, r, R, u, cos_phi, sin_phi, n_active, delta,
+               r_o, k_e, theta_birth)
+
+
+@kernel(nogil=True)
+def birth_angles_in(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth, kk_lo, kk_hi):
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place, of the asperities of chunks kk_lo .. kk_hi.
 
     A committed contact that stays in contact keeps its angle; one that leaves contact is
     released (NaN) and, like every asperity without an angle, is born at its current
@@ -228,7 +235,7 @@ def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_bir
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    for j in numba.prange(theta_birth.size):
+    for j in range(kk_lo * CHUNK, min(theta_birth.size, kk_hi * CHUNK)):
         if j >= n_active:
             theta_birth[j] = np.nan
             continue

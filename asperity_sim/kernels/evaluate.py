@@ -29,6 +29,7 @@ from .. import laws
 from ..checks import check_choice, check_delta
 from ..geometry import POLICIES
 from ..sampling.population import Population
+from ..threads import run_chunks
 from .layout import (
     BLOCK,
     CHUNK,
@@ -56,8 +57,9 @@ from .layout import (
     SERIAL_CHUNKS,
     finish,
 )
-from .reach import bounds
 from . import interaction
+from .history import scan_chunks
+from .reach import bounds
 from .specialise import kernels
 from .state import ContactState
 
@@ -250,9 +252,9 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
             kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
                                   state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
             return evaluation_from(d, out)
-        kern["reduce_parallel"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o, k_e, state.consts,
-                                tb, tan_max, workspace.partial)
         n_rows = (n_active + CHUNK - 1) // CHUNK
+        run_chunks(kern["reduce_parallel"], n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
+                   k_e, state.consts, tb, tan_max, workspace.partial)
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
         n_pop = (n_active + CHUNK - 1) // CHUNK
@@ -261,16 +263,17 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         workspace.fresh_key = None
         index = workspace.fresh_index(pop, d, state.delta_c, n_active)
         listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
-        kern["fresh_pass"](state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
-                           state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans,
-                           index, listed, n_listed, workspace.box, workspace.n_box, workspace.tan_box)
+        run_chunks(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box), state.flag, n_active, pop.r,
+                   pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c, state.reference, r_o, k_e, state.consts,
+                   state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
+                   workspace.n_box, workspace.tan_box)
         workspace.trials_by_index[index] += 1
         if index == 1:
             workspace.box_pop = pop
         if n_slot:
-            kern["slot_pass"](state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
-                              state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
-                              workspace.slot_rows(state.n_slots))
+            run_chunks(kern["slot_pass"], n_slot, state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u,
+                       pop.cos_phi, pop.sin_phi, d, state.delta_c, r_o, k_e, state.consts, state.arrays, tb,
+                       partial[n_pop:], workspace.slot_rows(state.n_slots))
         workspace.fresh_key = workspace.trial_key(d, state)
         n_rows = n_pop + n_slot
     finish(workspace.partial, n_rows, pop.n, scale, out)
@@ -390,7 +393,7 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
     tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else EMPTY
     out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
            "state": np.empty(pop.n, dtype=np.int8)}
-    kernels(lw, birth=tb.size > 0)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e,
-                                  lw.constants(pop.params, lw.options()), tb, out["delta_n"], out["theta"], out["force"],
-                                  out["state"])
+    run_chunks(kernels(lw, birth=tb.size > 0)["snapshot_local"], (pop.n + CHUNK - 1) // CHUNK, pop.r, pop.R, pop.u,
+               pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
+               out["delta_n"], out["theta"], out["force"], out["state"])
     return out

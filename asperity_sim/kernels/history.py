@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
-from ..jit import template
+from ..jit import kernel, template
 from ..vectormath import copy_into
 from .contact import (
     accumulate,
@@ -69,10 +68,12 @@ def trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
 # committed contacts live in slots (asp[sl] = asperity index, -1 a free slot) ----
 
 
-@template(parallel=True, error_model="numpy")
+@template(nogil=True, error_model="numpy")
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-              theta_birth, partial, slot_geo):
-    """Rows 0.. of ``partial``: the committed contacts at the trial displacement, from their history (read only).
+              theta_birth, partial, slot_geo, kk_lo, kk_hi):
+    """Rows of ``partial``: the committed contacts at the trial displacement, from their history (read only).
+
+    Chunks kk_lo .. kk_hi of the strided order (:func:`chunk_stride`, :func:`asperity_sim.threads.run_chunks`).
 
     Under policy follow, per block of BLOCK slots: their inputs gathered contiguous, their
     geometry in a loop that LLVM vectorises (:func:`slot_geometry`), the law's trial per contact,
@@ -85,7 +86,7 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     closure, dc = closure_and_slope(r_o, d1)
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
-    for kk in numba.prange(n_chunks):
+    for kk in range(kk_lo, kk_hi):
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_ACC)
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
@@ -138,10 +139,16 @@ def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
                 out[a, i] = 0.0
 
 
-@template(parallel=True, error_model="numpy")
+@kernel(inline="always")
+def scan_chunks(n_active, index, n_box):
+    """The chunks :func:`fresh_pass` goes through: of the n_box asperities it indexes (``index`` 1), else of n_active."""
+    return ((n_box if index == 1 else n_active) + CHUNK - 1) // CHUNK
+
+
+@template(nogil=True, error_model="numpy")
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
-               partial, spans, index, listed, n_listed, box, n_box, tan_box):
-    """Rows 0.. of ``partial``: asperities without a committed contact that touch at the trial displacement.
+               partial, spans, index, listed, n_listed, box, n_box, tan_box, kk_lo, kk_hi):
+    """Rows of ``partial``: asperities without a committed contact that touch at the trial displacement.
 
     They take their follow angle (SPEC §3) and start from no history; committed contacts are
     skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
@@ -153,7 +160,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     ``tan_box`` the angle bound there), committed or not, is listed in ``listed``: chunk ic's
     from position ic CHUNK on, in order, their count in ``n_listed[ic]``.  2: only the listed
     asperities are tested (the caller checked that the box holds delta).  The same asperities
-    touch in the same order, so the sums have the same bits whatever the index.
+    touch in the same order, so the sums have the same bits whatever the index.  Chunks kk_lo .. kk_hi of
+    the strided order over :func:`scan_chunks`.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
@@ -161,9 +169,9 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     c_lo, _ = closure_and_slope(r_o, box[0, 0])
     c_hi, _ = closure_and_slope(r_o, box[1, 0])
     n_chunks = (n_active + CHUNK - 1) // CHUNK
-    n_scan = (n_box + CHUNK - 1) // CHUNK if index == 1 else n_chunks
+    n_scan = scan_chunks(n_active, index, n_box)
     stride = chunk_stride(n_scan)
-    for kk in numba.prange(n_scan):
+    for kk in range(kk_lo, kk_hi):
         ic = (kk * stride) % n_scan
         lo = ic * CHUNK
         hi = min(n_active, lo + CHUNK)
@@ -212,13 +220,15 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
 
 
-@template(parallel=True, error_model="numpy")
+@template(nogil=True, error_model="numpy")
 def snapshot_slots(slot_of, dn_c, code, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, arrays, theta_birth,
-                   delta_n_out, theta_out, force_out, state_out):
-    """Per-asperity overlap, angle, global force of the committed springs and state code (call right after commit)."""
+                   delta_n_out, theta_out, force_out, state_out, kk_lo, kk_hi):
+    """Per-asperity overlap, angle, global force of the committed springs and state code (call right after commit).
+
+    Asperities of chunks kk_lo .. kk_hi."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
-    for j in numba.prange(r.size):
+    for j in range(kk_lo * CHUNK, min(r.size, kk_hi * CHUNK)):
         cp, sp = cos_phi[j], sin_phi[j]
         th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, dc, theta_birth, BIRTH)
         ct, st = math.cos(th), math.sin(th)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
@@ -136,18 +135,20 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
     copy_into(partial[ic], acc)
 
 
-@template(parallel=True, error_model="numpy")
-def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial):
-    """Partial sums of a path-independent law over the first n_active asperities, chunks in parallel.
+@template(nogil=True, error_model="numpy")
+def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial, kk_lo,
+                    kk_hi):
+    """Partial sums of a path-independent law over the first n_active asperities, chunks kk_lo .. kk_hi.
 
-    Chunks go to the threads in the strided order of :func:`chunk_stride`, so both threads
-    get low (in contact, costly) and high (cheap) heights; rows are overwritten.
+    Chunks go to the threads (:func:`asperity_sim.threads.run_chunks`) in the strided order of
+    :func:`chunk_stride`, so both threads get low (in contact, costly) and high (cheap) heights;
+    rows are overwritten.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)
-    for kk in numba.prange(n_chunks):
+    for kk in range(kk_lo, kk_hi):
         ic = (kk * stride) % n_chunks
         if BIRTH:
             chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
@@ -184,13 +185,14 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
         out[i, O_NA] = n_active
 
 
-@template(parallel=True, error_model="numpy")
+@template(nogil=True, error_model="numpy")
 def snapshot_local(r, R, u, cos_phi, sin_phi, delta, r_o, k_e, consts, theta_birth, delta_n_out, theta_out,
-                   force_out, state_out):
-    """Per-asperity overlap, orientation, global force and state code of a path-independent law."""
+                   force_out, state_out, kk_lo, kk_hi):
+    """Per-asperity overlap, orientation, global force and state code of a path-independent law (chunks kk_lo ..
+    kk_hi of asperities)."""
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    for j in numba.prange(r.size):
+    for j in range(kk_lo * CHUNK, min(r.size, kk_hi * CHUNK)):
         cp, sp = cos_phi[j], sin_phi[j]
         th, _ = contact_angle(j, r, u, 1.0 / R[j], cp, sp, d1, d2, d3, closure, k_e, 0.0, theta_birth, BIRTH)
         ct, st = math.cos(th), math.sin(th)

@@ -30,6 +30,7 @@ import numpy as np
 from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
+from ..threads import run_chunks
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
 from .reach import bounds
@@ -141,13 +142,13 @@ class ContactState:
             self._counts = np.zeros(n_pop_chunks, dtype=np.int64)
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
-            kern["commit_slots"](self.asp, self.n_slots, self.dn_c, self.code, self.flag, pop.r, pop.R, pop.u,
-                                 pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays,
-                                 tb, self.n_stored, self._partial, geo)
+            run_chunks(kern["commit_slots"], n_slot_chunks, self.asp, self.n_slots, self.dn_c, self.code, self.flag,
+                       pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts,
+                       self.arrays, tb, self.n_stored, self._partial, geo)
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
-        find_fresh(self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e,
-                           tan_max, counts, spans)
+        run_chunks(find_fresh, n_pop_chunks, self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta,
+                   p.r_o, p.k_e, tan_max, counts, spans)
         n_new = int(counts.sum())
         if n_new:
             self._reserve(self.n_slots + n_new)
@@ -156,9 +157,9 @@ class ContactState:
             n_new_chunks = (n_new + CHUNK - 1) // CHUNK
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
-            kern["commit_fresh"](new_slots, self.asp, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
-                                 pop.sin_phi, delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts,
-                                 self.arrays, self.n_stored, self._partial)
+            run_chunks(kern["commit_fresh"], n_new_chunks, new_slots, self.asp, self.dn_c, self.code, pop.r, pop.R,
+                       pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts,
+                       self.arrays, self.n_stored, self._partial)
             sums += self._partial[:n_new_chunks].sum(axis=0)
         scale = p.N * pop.weight
         transitions = np.rint(sums[C_TR:C_TR + 16]).astype(np.int64).reshape(4, 4)
@@ -185,16 +186,16 @@ class ContactState:
         tb = EMPTY if self.theta_birth is None else self.theta_birth
         d = np.asarray(delta, dtype=float)
         if not self.has_history:
-            kernels(self.law, birth=tb.size > 0)["snapshot_local"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e,
-                                                self.consts, tb, out["delta_n"], out["theta"], out["force"],
-                                                out["state"])
+            run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_local"], (pop.n + CHUNK - 1) // CHUNK, pop.r,
+                       pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts, tb, out["delta_n"],
+                       out["theta"], out["force"], out["state"])
             return out
         slot_of = np.full(pop.n, -1, dtype=np.int64)
         live = np.flatnonzero(self.asp[:self.n_slots] >= 0)
         slot_of[self.asp[live]] = live
-        kernels(self.law, birth=tb.size > 0)["snapshot_slots"](slot_of, self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi,
-                                            pop.sin_phi, d, p.r_o, p.k_e, self.consts, self.arrays, tb,
-                                            out["delta_n"], out["theta"], out["force"], out["state"])
+        run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_slots"], (pop.n + CHUNK - 1) // CHUNK, slot_of,
+                   self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts,
+                   self.arrays, tb, out["delta_n"], out["theta"], out["force"], out["state"])
         return out
 
     def state_arrays(self) -> dict:
