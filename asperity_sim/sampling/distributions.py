@@ -221,10 +221,10 @@ def _hermite_at(t, nodes, piece, t0, h, cells):
             + (-2.0 * s3 + 3.0 * s2) * x[k + 1] + (s3 - s2) * h * d[k + 1])
 
 
-@kernel(parallel=True)
+@kernel()
 def _hermite_many(t, nodes, t0, h, cells, out):
-    """out = :func:`_hermite_at` of piece 0 at every t."""
-    for i in numba.prange(t.size):
+    """out = :func:`_hermite_at` of piece 0 at every t (a table check: tens of thousands of points, once per shape)."""
+    for i in range(t.size):
         out[i] = _hermite_at(t[i], nodes, 0, t0, h, cells)
 
 

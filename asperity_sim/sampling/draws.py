@@ -1,25 +1,32 @@
 """Drawing the points of a population: the only module that touches random generators.
 
 Owns :func:`unit_points` (numpy's PCG64 for ``sampler="random"``, scrambled Sobol' points
-of :mod:`asperity_sim.sampling.sobol` for ``"sobol"``) and the parallel kernels that turn
-points into height-sorted struct-of-arrays: an O(n) sort of the height uniforms, the
-inverse CDFs of :mod:`asperity_sim.sampling.distributions` applied block by block, and the
-Sobol' net drawn directly in height order.
+of :mod:`asperity_sim.sampling.sobol` for ``"sobol"``) and the kernels that turn points into
+height-sorted struct-of-arrays: an O(n) sort of the height uniforms, the inverse CDFs of
+:mod:`asperity_sim.sampling.distributions` applied block by block, and the Sobol' net drawn
+directly in height order.  Blocks run on the threads (:func:`asperity_sim.threads.run_chunks`;
+each block the same bits on any thread).
 """
 
 from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..jit import kernel
+from ..threads import run_chunks
 from .distributions import cos_u_at, gamma_quantile_at, phi_at, radius_at
 from .sobol import BITS as SOBOL_BITS
 from .sobol import net_next, net_point, sobol_points
 
-NET_BLOCK = 4096  # Sobol' points per parallel block of sample_net
+NET_BLOCK = 4096  # Sobol' points per block of sample_net (each block starts from a point computed directly)
+POINT_BLOCK = 16384  # points per block of gather and inverse_cdfs
+
+
+def blocks(n: int, size: int) -> int:
+    """How many blocks of ``size`` hold n points."""
+    return (n + size - 1) // size
 
 
 @kernel()
@@ -50,10 +57,15 @@ def argsort_unit(p):
     return order
 
 
-@kernel(parallel=True)
 def gather(U, order, c0, c1, c2, c3):
     """c_k[i] = U[order[i], k]: the points in sorted order, one contiguous column per coordinate."""
-    for i in numba.prange(order.size):
+    run_chunks(gather_in, blocks(order.size, POINT_BLOCK), U, order, c0, c1, c2, c3)
+
+
+@kernel(nogil=True)
+def gather_in(U, order, c0, c1, c2, c3, b_lo, b_hi):
+    """:func:`gather` of the points of blocks b_lo .. b_hi."""
+    for i in range(b_lo * POINT_BLOCK, min(order.size, b_hi * POINT_BLOCK)):
         j = order[i]
         c0[i], c1[i], c2[i], c3[i] = U[j, 0], U[j, 1], U[j, 2], U[j, 3]
 
@@ -76,11 +88,17 @@ def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma
     return r, R, math.acos(x), math.cos(ph), math.sin(ph)
 
 
-@kernel(parallel=True)
-def inverse_cdfs(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi,
-                  b, c, d):
-    """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each."""
-    for i in numba.prange(r.size):
+def inverse_cdfs(r, R, u, cos_phi, sin_phi, *constants):
+    """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each (``constants``:
+    p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)."""
+    run_chunks(inverse_cdfs_in, blocks(r.size, POINT_BLOCK), r, R, u, cos_phi, sin_phi, *constants)
+
+
+@kernel(nogil=True)
+def inverse_cdfs_in(r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi,
+                    b, c, d, b_lo, b_hi):
+    """:func:`inverse_cdfs` of the points of blocks b_lo .. b_hi."""
+    for i in range(b_lo * POINT_BLOCK, min(r.size, b_hi * POINT_BLOCK)):
         r[i], R[i], u[i], cos_phi[i], sin_phi[i] = _asperity_at(
             r[i], R[i], u[i], cos_phi[i], p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)
 
@@ -100,24 +118,21 @@ def _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid,
         net_next(W, i, x)
 
 
-@kernel(parallel=True)
-def sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
-                lo, hi, b, c, d):
+def sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, *constants):
     """The scrambled Sobol' net of r.size = 2^m points (:func:`asperity_sim.sampling.sobol.net_directions`) through
     :func:`_asperity_at`, generated in increasing order of the height uniform: already sorted, no
-    array of uniforms.  Blocks of points run in parallel, each from its first point computed directly."""
-    for blk in numba.prange((r.size + NET_BLOCK - 1) // NET_BLOCK):
+    array of uniforms.  Blocks of NET_BLOCK points run on the threads, each from its first point
+    computed directly; a net of one block runs on the calling thread."""
+    run_chunks(sample_net_in, blocks(r.size, NET_BLOCK), W, shift, s, r, R, u, cos_phi, sin_phi, *constants)
+
+
+@kernel(nogil=True)
+def sample_net_in(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
+                  lo, hi, b, c, d, b_lo, b_hi):
+    """:func:`sample_net` of blocks b_lo .. b_hi."""
+    for blk in range(b_lo, b_hi):
         _net_block(blk, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
                    hi_cdf, lo, hi, b, c, d)
-
-
-@kernel()
-def sample_net_serial(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf,
-                       hi_cdf, lo, hi, b, c, d):
-    """:func:`sample_net` of one block (r.size <= NET_BLOCK) on the calling thread: the same points, without
-    the cost of starting a parallel region, which exceeds the work itself for small nets."""
-    _net_block(0, W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf,
-               lo, hi, b, c, d)
 
 
 @kernel()

@@ -28,13 +28,11 @@ from ..jit import kernel
 from ..params import InterfaceParams
 from .distributions import band_probability, quantile_table, radius_constants
 from .draws import (
-    NET_BLOCK,
     argsort_unit,
     clip_running_max,
     gather,
     inverse_cdfs,
     sample_net,
-    sample_net_serial,
     unit_points,
 )
 from .reach import reach
@@ -211,8 +209,7 @@ class Population:
         constants = (p_band, *quantile_table(shape), radius, *R_const, params.b, params.c, params.d)
         if sampler == "sobol" and n & (n - 1) == 0:
             r, R, u, cos_phi, sin_phi = (np.empty(n) for _ in range(5))
-            kernel = sample_net_serial if n <= NET_BLOCK else sample_net
-            kernel(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
+            sample_net(*net_directions(n.bit_length() - 1, seed), r, R, u, cos_phi, sin_phi, *constants)
         else:
             U = unit_points(n, seed, sampler)
             order = argsort_unit(U[:, 0])  # before the outputs exist: the sort's work arrays are freed
