@@ -3,7 +3,8 @@
 Owns :func:`warmup`, which ``asperity-sim warmup`` (an HPC job script, a Dask worker's start-up)
 calls: for each law, a few tiny runs that take the paths a real run takes (sampling with both
 samplers, the serial and the parallel reductions, Newton under stress control, the commit of a
-history law, snapshots), so that their kernels are compiled and written to numba's on-disk cache.
+history law, snapshots, both angle policies), so that their kernels are compiled and written to
+numba's on-disk cache.
 A kernel already in the cache is only loaded.  The runs' results are thrown away.
 """
 
@@ -32,7 +33,8 @@ def warmup(law_names=None, report=None) -> dict:
         if report is not None:
             report(f"compiling the {name} kernels")
         t0 = time.perf_counter()
-        for n, sampler in ((500, "random"), (512, "sobol"), (big, "random")):
-            simulate(presets.R1, path, n=n, seed=1, sampler=sampler, law=name, snapshots=[0, 2])
+        for n, sampler, policy in ((500, "random", "follow"), (512, "sobol", "follow"), (big, "random", "follow"),
+                                   (500, "random", "birth"), (big, "random", "birth")):
+            simulate(presets.R1, path, n=n, seed=1, sampler=sampler, law=name, snapshots=[0, 2], policy=policy)
         out[name] = time.perf_counter() - t0
     return out
