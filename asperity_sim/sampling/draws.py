@@ -135,14 +135,12 @@ def sample_net_in(W, shift, s, r, R, u, cos_phi, sin_phi, p_band, nodes, grid, r
                    hi_cdf, lo, hi, b, c, d)
 
 
-@kernel()
 def clip_running_max(r, r_band):
-    """r = running max of min(r, r_band), in place: round-off in the quantile never breaks the sort."""
-    m = 0.0
-    for i in range(r.size):
-        v = min(r[i], r_band)
-        m = max(m, v)
-        r[i] = m
+    """r = running max of min(r, r_band), in place: round-off in the quantile never breaks the sort.
+
+    numpy, not a kernel: min and max are exact, so the bits are those of any loop, and nothing is compiled."""
+    np.minimum(r, r_band, out=r)
+    np.maximum.accumulate(r, out=r)
 
 
 def unit_points(n: int, seed, sampler: str) -> np.ndarray:
