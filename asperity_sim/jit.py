@@ -32,7 +32,7 @@ from pathlib import Path
 import numba
 from numba.core import event
 
-__all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag", "CompileNotice"]
+__all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag", "group_of", "CompileNotice"]
 
 PACKAGE = Path(__file__).resolve().parent
 COMPILED = re.compile(rb"^@(kernel|template)\(|^\s*(import|from) numba\b", flags=re.M)
@@ -85,6 +85,16 @@ def template(**options):
     return mark
 
 
+def group_of(f):
+    """The compile group of a function: ``<law>_<policy>`` for a law's reductions
+    (``slot_pass__mdr_follow_<fingerprint>``), "shared" for the package's other kernels, None outside the package."""
+    if not f.__module__.startswith(PACKAGE.name + "."):
+        return None
+    name = f.__qualname__
+    group = name.split("__", 1)[1].rpartition("_")[0] if name.count("__") and "_" in name.split("__", 1)[1] else ""
+    return group or "shared"
+
+
 class CompileNotice(event.Listener):
     """Says once per group, on a terminal, that the package's kernels are being compiled.
 
@@ -99,11 +109,9 @@ class CompileNotice(event.Listener):
 
     def on_start(self, ev):
         f = getattr((ev.data or {}).get("dispatcher"), "py_func", None)
-        if f is None or not f.__module__.startswith(__name__.rpartition(".")[0] + "."):
+        group = None if f is None else group_of(f)
+        if group is None:
             return
-        name = f.__qualname__
-        group = name.split("__", 1)[1].rpartition("_")[0] if name.count("__") and "_" in name.split("__", 1)[1] else ""
-        group = group or "shared"
         stream = self.stream or sys.stderr
         if group in self.said or not (self.isatty or stream.isatty)():
             return

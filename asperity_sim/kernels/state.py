@@ -31,6 +31,7 @@ from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
 from ..threads import run_chunks
+from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
 from .reach import bounds
@@ -142,6 +143,7 @@ class ContactState:
             self._counts = np.zeros(n_pop_chunks, dtype=np.int64)
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
+            wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
             run_chunks(kern["commit_slots"], n_slot_chunks, self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts,
                        self.arrays, tb, self.n_stored, self._partial, geo)
@@ -157,6 +159,7 @@ class ContactState:
             n_new_chunks = (n_new + CHUNK - 1) // CHUNK
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
+            wait_for(kern["commit_fresh"])
             run_chunks(kern["commit_fresh"], n_new_chunks, new_slots, self.asp, self.dn_c, self.code, pop.r, pop.R,
                        pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts,
                        self.arrays, self.n_stored, self._partial)
