@@ -135,6 +135,18 @@ def chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc
     copy_into(partial[ic], acc)
 
 
+@template(inline="always", error_model="numpy")
+def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth, tan_max,
+              partial):
+    """Row ic of ``partial`` under the copy's policy (``BIRTH``, a constant: the other branch is pruned before
+    numba inlines it)."""
+    if BIRTH:
+        chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                    tan_max, partial)
+    else:
+        chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max, partial)
+
+
 @template(nogil=True, error_model="numpy")
 def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial, kk_lo,
                     kk_hi):
@@ -149,13 +161,8 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)
     for kk in range(kk_lo, kk_hi):
-        ic = (kk * stride) % n_chunks
-        if BIRTH:
-            chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
-                        tan_max, partial)
-        else:
-            chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max,
-                         partial)
+        chunk_any((kk * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts,
+                  theta_birth, tan_max, partial)
 
 
 @template(error_model="numpy")
@@ -175,12 +182,8 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
         closure, dc = closure_and_slope(r_o, d1)
         n_chunks = (n_active + CHUNK - 1) // CHUNK
         for ic in range(n_chunks):
-            if BIRTH:
-                chunk_birth(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
-                            tan_max, partial)
-            else:
-                chunk_follow(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, tan_max,
-                             partial)
+            chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts, theta_birth,
+                      tan_max, partial)
         finish(partial, n_chunks, n, scale, out[i])
         out[i, O_NA] = n_active
 
