@@ -88,7 +88,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "history_law_scale.json", "history_law_baseline.json", "memory.json", "sweep_speedup.json", "sweep_auto.json",
            "mdr_k_convergence.json", "mdr_k_convergence.md", "convergence_repeat.md", "same_numbers.md",
            "same_numbers.json", "history_law_against_0.3.json", "cold_start.json", "whole_run.json",
-           "same_numbers_first_run.md", "same_numbers_first_run.json")
+           "same_numbers_first_run.md", "same_numbers_first_run.json", "cold_start_ed6517e.json",
+           "same_numbers_threads.md", "same_numbers_threads.json")
 
 
 def script_path(name: str) -> Path:
