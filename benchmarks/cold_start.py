@@ -12,9 +12,12 @@ then each again with the cache the first filled (warm).  The compile time of a r
 time less its warm time; the compile time of each compiled function (numba's own timers: the
 time under the compiler lock, which includes the functions it calls that were compiled for it,
 and the part of it in LLVM) is listed largest first, so that a change can be aimed at what costs.
+A history law's run starts its compile-ahead helper (:mod:`asperity_sim.kernels.ahead`) as any
+first run does: the kernels the helper compiled are loaded, not listed, and its time on the other
+core is not counted (the wall time a user waits).
 
 Run:   python3 benchmarks/cold_start.py [--skip-main-job]
-Writes outputs/cold_start.json and prints a table.  About 3-4 minutes on 2 cores.
+Writes outputs/cold_start.json and prints a table.  About 2 minutes on 2 cores (2026-11-27).
 """
 
 from __future__ import annotations

@@ -74,6 +74,8 @@ def start(law_name: str, birth: bool, helper: str = HELPER) -> bool:
     law = laws.get(law_name)
     if law.history is None or law.name not in BUILT_IN or laws.LAWS[law.name] is not law:
         return False
+    if getattr(sys, "frozen", False):  # a bundled application: sys.executable is not a Python to run -m with
+        return False
     names = [kernels(law, birth=birth)[k].py_func.__qualname__ for k in COMMIT_KERNELS]
     env = {**os.environ, ENV: "0"}
     try:
