@@ -77,7 +77,9 @@ def start(law_name: str, birth: bool, helper: str = HELPER) -> bool:
     if getattr(sys, "frozen", False):  # a bundled application: sys.executable is not a Python to run -m with
         return False
     names = [kernels(law, birth=birth)[k].py_func.__qualname__ for k in COMMIT_KERNELS]
-    env = {**os.environ, ENV: "0"}
+    # this very package first on the helper's path, whatever put it on this process's
+    path = os.pathsep.join(p for p in (str(jit.PACKAGE.parent), os.environ.get("PYTHONPATH")) if p)
+    env = {**os.environ, ENV: "0", "PYTHONPATH": path}
     try:
         process = subprocess.Popen([sys.executable, "-m", helper, law.name, "birth" if birth else "follow"],
                                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
