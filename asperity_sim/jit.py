@@ -101,7 +101,8 @@ class CompileNotice(event.Listener):
     numba announces every compile that its on-disk cache could not serve (``numba:compile``);
     a kernel of the package compiled for the first time in this process starts its group's line:
     the law and angle policy of the reductions specialised for them
-    (``slot_pass__mdr_follow_<fingerprint>``), "shared" for the others.  Nothing is said when stderr is not a terminal (``isatty``).
+    (``slot_pass__mdr_follow_<fingerprint>``), "shared" for the others.  Nothing is said when
+    stderr is not a terminal (``isatty``).
     """
 
     def __init__(self, stream=None, isatty=None):

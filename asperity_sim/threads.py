@@ -10,7 +10,8 @@ whatever range it falls in, so no result depends on the number of threads.
 
 Why not numba's ``parallel=True``: numba compiles the body of a parallel loop twice (in the
 function, then again as the loop's own kernel), which doubles the first-run compile time of the
-reductions; for loops of whole chunks a pool of threads costs the same at run time.
+reductions.  The price is at run time: a pool thread takes 70-100 us to pick up its part, where
+numba's spinning OpenMP threads take 2-3 us (docs/performance.md, "The price of the pool").
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
-__all__ = ["run_chunks"]
+__all__ = ["run_chunks", "chunks_of"]
 
 _POOL: list = []
 _LOCK = threading.Lock()
@@ -33,6 +34,11 @@ def _pool() -> ThreadPoolExecutor:
             workers = max(1, numba.config.NUMBA_NUM_THREADS - 1)
             _POOL.append(ThreadPoolExecutor(max_workers=workers, thread_name_prefix="asperity_sim"))
         return _POOL[0]
+
+
+def chunks_of(n: int, size: int) -> int:
+    """How many chunks of ``size`` items hold n items."""
+    return (n + size - 1) // size
 
 
 def run_chunks(kernel, n_chunks: int, *args) -> None:

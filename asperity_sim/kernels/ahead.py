@@ -1,7 +1,7 @@
 """Compile ahead on the other core: a history law's commit kernels, while this process compiles its trial.
 
-Owns :func:`start`, :func:`wait_for` and the listener that starts the helper.  The first run of a history law
-with an empty numba cache compiles its trial kernels, then its commit kernels, one after the
+Owns :func:`start`, :func:`wait_for` and the listener that starts the helper.  The first run of
+a history law with an empty numba cache compiles its trial kernels, then its commit kernels, one after the
 other on one core.  When numba starts compiling the first kernel of a law and policy in this
 process (a cache miss: :mod:`asperity_sim.jit` names the group), a helper process
 (:mod:`asperity_sim.kernels.ahead_helper`) compiles the commit kernels of that law and policy on
@@ -10,8 +10,8 @@ this process first calls one of them (:meth:`~asperity_sim.kernels.state.Contact
 :func:`wait_for` waits until the helper has said it, and numba loads it from the cache.
 
 Only where it pays and cannot surprise: a law registered when the package is imported (one
-registered at run time is unknown to a fresh process), more than one numba thread (a spare core), and not inside the
-helper itself or with ``ASPERITY_SIM_COMPILE_AHEAD=0``.  If the helper fails, this process
+registered at run time is unknown to a fresh process), more than one numba thread (a spare
+core), and not inside the helper itself or with ``ASPERITY_SIM_COMPILE_AHEAD=0``.  If the helper fails, this process
 compiles the kernels itself, as it would have.
 """
 
@@ -27,7 +27,7 @@ from numba.core import event
 
 from .. import jit, laws
 
-__all__ = ["wait_for", "start", "pending", "ENV"]
+__all__ = ["wait_for", "start", "pending", "commit_kernel_names", "ENV"]
 
 ENV = "ASPERITY_SIM_COMPILE_AHEAD"
 """Environment variable: ``0`` turns compiling ahead off (the helper runs with it)."""
@@ -40,6 +40,13 @@ BUILT_IN = frozenset(laws.LAWS)
 """The laws a fresh process knows (registered when the package is imported): the only ones a helper can compile."""
 _PENDING: dict = {}  # kernel qualname -> the helper compiling it
 _LOCK = threading.Lock()
+
+
+def commit_kernel_names(law, birth: bool) -> list:
+    """The qualified names of the law's :data:`COMMIT_KERNELS` under the policy, in order (what the helper says)."""
+    from .specialise import kernels  # specialise imports the templates, which are heavy: only when needed
+
+    return [kernels(law, birth=birth)[k].py_func.__qualname__ for k in COMMIT_KERNELS]
 
 
 def pending() -> set:
@@ -69,14 +76,12 @@ def wait_for(dispatcher) -> None:
 def start(law_name: str, birth: bool, helper: str = HELPER) -> bool:
     """Start the helper (module ``helper``) for the commit kernels of a history law under a policy; False if
     there is none to start (a law without history, or unknown to a fresh process) or it cannot be started."""
-    from .specialise import kernels  # specialise imports the templates, which are heavy: only when needed
-
     law = laws.get(law_name)
-    if law.history is None or law.name not in BUILT_IN or laws.LAWS[law.name] is not law:
+    if law.history is None or law.name not in BUILT_IN:
         return False
     if getattr(sys, "frozen", False):  # a bundled application: sys.executable is not a Python to run -m with
         return False
-    names = [kernels(law, birth=birth)[k].py_func.__qualname__ for k in COMMIT_KERNELS]
+    names = commit_kernel_names(law, birth)
     # this very package first on the helper's path, whatever put it on this process's
     path = os.pathsep.join(p for p in (str(jit.PACKAGE.parent), os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, ENV: "0", "PYTHONPATH": path}

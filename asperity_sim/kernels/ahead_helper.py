@@ -15,8 +15,7 @@ import numpy as np
 
 from .. import presets
 from ..sampling.population import Population
-from .ahead import COMMIT_KERNELS
-from .specialise import kernels
+from .ahead import commit_kernel_names
 from .state import ContactState
 
 
@@ -25,8 +24,7 @@ def main(argv=None) -> int:
     p = presets.R1
     pop = Population.from_arrays(p, [0.0, 0.1 * p.beta, 0.2 * p.beta], [p.R_m] * 3, [0.3, 0.6, 0.9], [0.0, 1.0, 2.0])
     state = ContactState(pop, law=law, policy=policy)
-    names = [kernels(law, birth=policy == "birth")[k].py_func.__qualname__ for k in COMMIT_KERNELS]
-    for name, d2 in zip(names, (0.0, 0.1 * p.beta)):
+    for name, d2 in zip(commit_kernel_names(law, policy == "birth"), (0.0, 0.1 * p.beta)):
         state.commit(np.array([p.beta, d2, 0.0]))
         print(name, flush=True)
     return 0

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
-from ..threads import run_chunks
+from ..threads import chunks_of, run_chunks
 from ..vectormath import copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
@@ -220,14 +220,16 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
 
 
 def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):
-    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place (:func:`birth_angles_in`, every chunk)."""
-    run_chunks(birth_angles_in, (theta_birth.size + CHUNK - 1) // CHUNK, r, R, u, cos_phi, sin_phi, n_active, delta,
-               r_o, k_e, theta_birth)
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place (:func:`birth_angles_in` over
+    every chunk)."""
+    run_chunks(birth_angles_in, chunks_of(theta_birth.size, CHUNK), r, R, u, cos_phi, sin_phi, n_active, delta, r_o,
+               k_e, theta_birth)
 
 
 @kernel(nogil=True)
 def birth_angles_in(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth, kk_lo, kk_hi):
-    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place, of the asperities of chunks kk_lo .. kk_hi.
+    """Commit the birth angles at delta (policy ``birth``, SPEC §3), in place, of the asperities of chunks
+    kk_lo .. kk_hi.
 
     A committed contact that stays in contact keeps its angle; one that leaves contact is
     released (NaN) and, like every asperity without an angle, is born at its current

@@ -141,7 +141,8 @@ def each_contact(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
 
 @kernel(inline="always")
 def scan_chunks(n_active, index, n_box):
-    """The chunks :func:`fresh_pass` goes through: of the n_box asperities it indexes (``index`` 1), else of n_active."""
+    """The chunks :func:`fresh_pass` goes through: of the n_box asperities it indexes (``index`` 1), else of
+    n_active."""
     return ((n_box if index == 1 else n_active) + CHUNK - 1) // CHUNK
 
 

@@ -12,9 +12,9 @@ the placeholders are that law's kernels (a law without block kernels gets :func:
 and :func:`each_commit`, which call its per-contact kernels), ``BIRTH`` is the angle policy
 (a constant: the other policy's branches are pruned before numba types them, so a scene
 compiles only its own) and every template name is the law's own copy, then compiled with the
-options of its decorator under the name ``<template>__<law>_<policy>_<fingerprint>``.  A closure over the law's kernels, or kernels passed as
-arguments, would defeat numba's on-disk cache; named copies of plain functions keep it, each
-law cached apart.  The fingerprint (:func:`law_fingerprint`) covers every kernel source of the
+options of its decorator under the name ``<template>__<law>_<policy>_<fingerprint>``.  A
+closure over the law's kernels, or kernels passed as arguments, would defeat numba's on-disk
+cache; named copies of plain functions keep it, each law cached apart.  The fingerprint (:func:`law_fingerprint`) covers every kernel source of the
 package and the law's own files, so no edit in a copy's call graph leaves it stale.
 """
 

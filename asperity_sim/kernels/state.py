@@ -30,7 +30,7 @@ import numpy as np
 from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
-from ..threads import run_chunks
+from ..threads import chunks_of, run_chunks
 from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
@@ -189,14 +189,14 @@ class ContactState:
         tb = EMPTY if self.theta_birth is None else self.theta_birth
         d = np.asarray(delta, dtype=float)
         if not self.has_history:
-            run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_local"], (pop.n + CHUNK - 1) // CHUNK, pop.r,
-                       pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts, tb, out["delta_n"],
+            run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), pop.r, pop.R,
+                       pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts, tb, out["delta_n"],
                        out["theta"], out["force"], out["state"])
             return out
         slot_of = np.full(pop.n, -1, dtype=np.int64)
         live = np.flatnonzero(self.asp[:self.n_slots] >= 0)
         slot_of[self.asp[live]] = live
-        run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_slots"], (pop.n + CHUNK - 1) // CHUNK, slot_of,
+        run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_slots"], chunks_of(pop.n, CHUNK), slot_of,
                    self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts,
                    self.arrays, tb, out["delta_n"], out["theta"], out["force"], out["state"])
         return out

@@ -15,18 +15,13 @@ import math
 import numpy as np
 
 from ..jit import kernel
-from ..threads import run_chunks
+from ..threads import chunks_of, run_chunks
 from .distributions import cos_u_at, gamma_quantile_at, phi_at, radius_at
 from .sobol import BITS as SOBOL_BITS
 from .sobol import net_next, net_point, sobol_points
 
 NET_BLOCK = 4096  # Sobol' points per block of sample_net (each block starts from a point computed directly)
 POINT_BLOCK = 16384  # points per block of gather and inverse_cdfs
-
-
-def blocks(n: int, size: int) -> int:
-    """How many blocks of ``size`` hold n points."""
-    return (n + size - 1) // size
 
 
 @kernel()
@@ -59,7 +54,7 @@ def argsort_unit(p):
 
 def gather(U, order, c0, c1, c2, c3):
     """c_k[i] = U[order[i], k]: the points in sorted order, one contiguous column per coordinate."""
-    run_chunks(gather_in, blocks(order.size, POINT_BLOCK), U, order, c0, c1, c2, c3)
+    run_chunks(gather_in, chunks_of(order.size, POINT_BLOCK), U, order, c0, c1, c2, c3)
 
 
 @kernel(nogil=True)
@@ -91,7 +86,7 @@ def _asperity_at(p_r, p_R, p_u, p_phi, p_band, nodes, grid, radius, R_m, R_sigma
 def inverse_cdfs(r, R, u, cos_phi, sin_phi, *constants):
     """In place, from the sorted uniforms held in r, R, u, cos_phi: :func:`_asperity_at` of each (``constants``:
     p_band, nodes, grid, radius, R_m, R_sigma, lo_cdf, hi_cdf, lo, hi, b, c, d)."""
-    run_chunks(inverse_cdfs_in, blocks(r.size, POINT_BLOCK), r, R, u, cos_phi, sin_phi, *constants)
+    run_chunks(inverse_cdfs_in, chunks_of(r.size, POINT_BLOCK), r, R, u, cos_phi, sin_phi, *constants)
 
 
 @kernel(nogil=True)
@@ -123,7 +118,7 @@ def sample_net(W, shift, s, r, R, u, cos_phi, sin_phi, *constants):
     :func:`_asperity_at`, generated in increasing order of the height uniform: already sorted, no
     array of uniforms.  Blocks of NET_BLOCK points run on the threads, each from its first point
     computed directly; a net of one block runs on the calling thread."""
-    run_chunks(sample_net_in, blocks(r.size, NET_BLOCK), W, shift, s, r, R, u, cos_phi, sin_phi, *constants)
+    run_chunks(sample_net_in, chunks_of(r.size, NET_BLOCK), W, shift, s, r, R, u, cos_phi, sin_phi, *constants)
 
 
 @kernel(nogil=True)
