@@ -94,7 +94,7 @@ def throughput(n, repeat):
             d = np.array(d_um) * 1e-6
             ev = evaluate(pop, d, workspace=ws)
             med, best = median_time(lambda: evaluate(pop, d, workspace=ws), repeat)
-            F = gridmethod._Evaluator(presets.R1, rule)
+            F = gridmethod.GridEvaluator(presets.R1, rule)
             g_med, _ = median_time(lambda: F(d), max(2, repeat // 10))
             visited_grid = F.points / F.calls
             rows.append({"threads": threads, "state": label, "delta_um": list(d_um), "n": pop.n,

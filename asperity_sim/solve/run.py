@@ -10,8 +10,6 @@ checks the inputs and builds it.
 
 from __future__ import annotations
 
-import datetime as _dt
-import functools
 import math
 import os
 import time
@@ -27,16 +25,15 @@ from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked, se
 from ..kernels.state import ContactState
 from ..output.recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from ..output.variables import run_variables
-from ..reference.rules import theta_am
 from ..sampling.population import Population
 from ..version import __version__
 from . import run_checkpoint
 from .domain import DomainMonitor
+from .records import record_step, stderr_attributes, theta_am_at, utc_now
 from .solver import solve_increment
 from .stepping import (
     TRUST,
     Position,
-    area_stderr,
     cubic_predictor,
     effective_stiffness,
     extrapolated_predictor,
@@ -44,18 +41,11 @@ from .stepping import (
     length_scale,
     next_step,
     ramped_components,
-    solution_stderr,
     tangent_predictor,
     unreachable_by_symmetry,
 )
 
 BATCH = 64  # displacement-controlled increments per kernel call (the wall-time limit is checked between calls)
-
-
-@functools.lru_cache(maxsize=256)
-def _theta_am(params, c):
-    """theta_am(c) [rad], cached: paths often hold the closure (shear at a prescribed Delta_1)."""
-    return float(theta_am(params, c))
 
 
 class Run:
@@ -105,7 +95,7 @@ class Run:
         self.attrs["law_summary"] = law.summary
         self.attrs["law_domain"] = law.domain
         self.attrs.update(law.run_attributes(self.state.options, getattr(self.state, "arrays", ())))
-        _stderr_attrs(self.attrs, pop.n)
+        stderr_attributes(self.attrs, pop.n)
         self.attrs["increments_at_resolution"] = 0  # residual above rtol, accepted at the resolution of Delta
         self.attrs["increments_at_resolution_note"] = (
             "increments whose stress target no representable Delta meets to rtol (contact overlaps far below "
@@ -115,7 +105,7 @@ class Run:
         self.energy = ({"external_work": 0.0, "elastic_energy": 0.0, "dissipation": 0.0, self.law.history.events: 0,
                         "transitions": np.zeros((4, 4), dtype=np.int64)} if self.law.history is not None else {})
         self.pos = Position()
-        _record(self.rec, params, self.ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0,
+        record_step(self.rec, params, self.ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0,
                 cutbacks=0, **self.energy, **self.domain_flags(0, self.ev.delta, self.ev.stress))
         if 0 in self.snap_steps:
             self.take_snapshot(0)
@@ -206,7 +196,7 @@ class Run:
         rec.extend(displacement=deltas[:m], stress=steps.stress[:m], stress_stderr=steps.stderr[:m],
                    displacement_stderr=0.0, tangent=steps.tangent[:m], n_contact=steps.n_contact[:m],
                    n_slip=steps.n_slip[:m], n_partial=steps.n_partial[:m],
-                   theta_am=[_theta_am(params, float(closure(params, d1))) for d1 in deltas[:m, 0]],
+                   theta_am=[theta_am_at(params, float(closure(params, d1))) for d1 in deltas[:m, 0]],
                    mean_theta=steps.mean_theta[:m], contact_area_fraction=steps.contact_area[:m],
                    contact_area_fraction_stderr=steps.contact_area_stderr[:m],
                    mean_gap=params.mean_plane_depth - deltas[:m, 0], mean_gap_stderr=0.0,
@@ -231,7 +221,7 @@ class Run:
         params, path, settings, rec, pos = self.params, self.path, self.settings, self.rec, self.pos
         attrs = self.attrs
         if self.resumed_from is not None:
-            attrs["history"] = (f"{attrs.get('history', '')}\n{_now()} resumed from checkpoint "
+            attrs["history"] = (f"{attrs.get('history', '')}\n{utc_now()} resumed from checkpoint "
                                 f"{self.resumed_from[0]} at step {self.resumed_from[1]}").lstrip("\n")
         failure = None
         interrupted = None
@@ -327,7 +317,7 @@ class Run:
                     if free.any():
                         pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, ramped))
                     done_in_stage += 1
-                    _record(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
+                    record_step(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
                             residual=result.residual, cutbacks=cuts, **self.energy,
                             **self.domain_flags(rec.size, ev.delta, ev.stress))
                     if result.residual > settings.rtol:  # accepted at the floating-point resolution of Delta
@@ -386,28 +376,3 @@ class Run:
                                                ds_out) from err
         return ds_out
 
-
-def _stderr_attrs(attrs, n):
-    """n = 1: the Monte Carlo standard error is undefined; it is reported as 0 and flagged here."""
-    attrs["stderr_defined"] = int(n > 1)
-    if n < 2:
-        attrs["stderr_note"] = ("n = 1: the Monte Carlo standard error of one sample is undefined; stress_stderr "
-                                "and displacement_stderr are written as 0 and are not error bars")
-
-
-def _now():
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
-def _record(rec, params, ev, *, stage, control, iterations, residual, cutbacks, **extra):
-    stress_se, disp_se = solution_stderr(ev, control)
-    rec.append(
-        displacement=ev.delta, stress=ev.stress, stress_stderr=stress_se, displacement_stderr=disp_se,
-        tangent=ev.tangent,
-        n_contact=ev.n_contact, n_slip=ev.n_slip, n_partial=ev.n_partial,
-        theta_am=_theta_am(params, float(closure(params, ev.delta[0]))), mean_theta=ev.mean_theta,
-        contact_area_fraction=ev.contact_area, contact_area_fraction_stderr=area_stderr(ev, control),
-        mean_gap=params.mean_plane_depth - ev.delta[0], mean_gap_stderr=disp_se[0],
-        stage=stage, control=control.astype("i1"), iterations=iterations, residual=residual,
-        cutbacks=cutbacks, **extra,
-    )
