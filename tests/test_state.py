@@ -7,6 +7,7 @@ import pytest
 
 from asperity_sim import paths, Population, presets, reference, simulate
 from asperity_sim.kernels.evaluate import evaluate, Workspace
+from asperity_sim.kernels import state as state_module
 from asperity_sim.kernels.state import ContactState
 
 um = 1e-6
@@ -138,6 +139,24 @@ def test_energy_balance_closes_and_dissipation_never_decreases(path):
     assert np.array_equal(tr[1:, :, 1:].sum(axis=(1, 2)), counts[1:])  # to: contacts after
     assert np.array_equal(tr[1:, :, 3].sum(axis=1), ds.n_slip.values[1:])
     assert np.array_equal(tr[1:, :, 2].sum(axis=1), ds.n_partial.values[1:])
+
+
+def test_slots_grow_the_same_where_reserving_them_is_refused(monkeypatch):
+    """The slot arrays are reserved for as many slots as asperities; where that memory cannot be had, 1024
+    slots grow as contacts come, and the committed state is the same, bit for bit."""
+    pop, reserved = loaded_history(n=20000)
+    assert reserved.asp.size == pop.n
+
+    def refuse(shape, dtype=np.float64):
+        raise MemoryError("refused (test)")
+
+    monkeypatch.setattr(state_module, "reserve", refuse)
+    _, grown = loaded_history(n=20000)
+    assert 1024 < grown.n_slots <= grown.asp.size < pop.n
+    a, b = reserved.state_arrays(), grown.state_arrays()
+    assert a.keys() == b.keys()
+    for name in a:
+        assert np.array_equal(a[name], b[name]), name
 
 
 def test_contact_loss_erases_memory():

@@ -28,10 +28,10 @@ import numpy as np
 from .. import laws
 from ..checks import check_choice, check_delta
 from ..geometry import POLICIES
+from ..memory import reserve
 from ..sampling.population import Population
 from ..threads import chunks_of, run_chunks
 from .layout import (
-    BLOCK,
     CHUNK,
     EMPTY,
     EMPTY_COUNTS,
@@ -115,6 +115,7 @@ class Workspace:
     AHEAD = 8  # the index box reaches this many times the step from the committed displacement
 
     def __init__(self, n, index=True):
+        self.n = n
         n_chunks = (n + CHUNK - 1) // CHUNK
         self.partial = np.zeros((n_chunks, N_ACC))
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
@@ -146,9 +147,10 @@ class Workspace:
         return self.slot_geo if self.made_at(delta, state) and state.theta_birth is None else EMPTY_SLOT_GEO
 
     def slot_rows(self, n_slots):
-        """The slot geometry array, grown (by a quarter beyond the need) to hold ``n_slots`` slots."""
+        """The slot geometry array, for as many slots as the population has asperities (reserved: only the slots
+        in use cost memory, :func:`asperity_sim.memory.reserve`)."""
         if self.slot_geo.shape[1] < n_slots:
-            self.slot_geo = np.zeros((N_SLOT_GEO, n_slots + n_slots // 4 + BLOCK))
+            self.slot_geo = reserve((N_SLOT_GEO, max(self.n, n_slots)))
         return self.slot_geo
 
     def fresh_index(self, pop, d, delta_c, n_active):
@@ -163,7 +165,7 @@ class Workspace:
         if not self.index:
             return 0
         if self.listed is None or self.listed.size < pop.n:
-            self.listed = np.empty(self.spans.shape[0] * CHUNK, dtype=np.int32)
+            self.listed = reserve(self.spans.shape[0] * CHUNK, np.int32)  # written up to n_listed
             self.n_listed = np.zeros(self.spans.shape[0], dtype=np.int64)
             self.box_pop = None
         if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
@@ -397,3 +399,4 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
                pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
                out["delta_n"], out["theta"], out["force"], out["state"])
     return out
+

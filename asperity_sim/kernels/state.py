@@ -7,8 +7,9 @@ Owns what a contact remembers between increments:
   (struct-of-arrays over slots: the asperity index ``asp`` (-1 for a free slot), the committed
   overlap ``dn_c`` and state code ``code``, and the law's own arrays, e.g. springs), a one-byte
   flag per asperity (1: holds a slot) and the committed interface displacement ``delta_c``.
-  Asperities that never touch get nothing; a contact that is lost frees its slot and its
-  memory is erased (SPEC: contact loss erases history).
+  Asperities that never touch get nothing: the slot arrays are reserved for as many slots as
+  asperities (:mod:`asperity_sim.memory`), and only the slots in use take memory.  A contact
+  that is lost frees its slot and its memory is erased (SPEC: contact loss erases history).
 
 A path-independent law under policy follow keeps nothing.  Trial evaluations
 (:func:`asperity_sim.kernels.evaluate.evaluate`) only read this state; :meth:`ContactState.commit` is
@@ -30,6 +31,7 @@ import numpy as np
 from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
+from ..memory import reserve
 from ..threads import chunks_of, run_chunks
 from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
@@ -52,7 +54,7 @@ class CommitResult:
 class ContactState:
     """The committed per-contact state of a population under one law and policy (module docstring)."""
 
-    def __init__(self, pop, law="paper", policy="follow", options=None, capacity=1024, **law_options):
+    def __init__(self, pop, law="paper", policy="follow", options=None, **law_options):
         """``options``: the law's options object (:attr:`Law.options`), or ``law_options`` as keywords
         (:func:`asperity_sim.laws.options_of`: those of other laws ignored, unknown names refused)."""
         self.law = laws.get(law)
@@ -71,14 +73,23 @@ class ContactState:
         self.reference = np.zeros(3)  # where fresh contacts are expected to go: their springs fit it
         self.n_slots = 0
         if self.law.history is not None:
-            cap = max(int(capacity), 1)
             self.flag = np.zeros(pop.n, dtype=np.uint8)
-            self.asp = np.full(cap, -1, dtype=np.int32)
-            self.dn_c = np.zeros(cap)
-            self.code = np.zeros(cap, dtype=np.int8)
-            self.arrays = self.law.history.arrays(cap, options)
+            self._allocate_slots(pop.n)
             self._counts = np.zeros(0, dtype=np.int64)
             self._partial = np.zeros((0, N_COMMIT))
+
+    def _allocate_slots(self, n):
+        """The slot arrays: reserved for as many slots as asperities (:func:`asperity_sim.memory.reserve`: only
+        slots in use cost memory, and nothing moves as contacts come; slots from ``n_slots`` on are never
+        read), or, where that much memory cannot be had, 1024 slots that grow."""
+        shapes = [((), np.int32), ((), np.float64), ((), np.int8)]
+        shapes += [(a.shape[1:], a.dtype) for a in self.law.history.arrays(1, self.options)]
+        try:
+            self.asp, self.dn_c, self.code, *law_arrays = (reserve((max(n, 1),) + s, t) for s, t in shapes)
+        except MemoryError:
+            self.asp, self.dn_c, self.code, *law_arrays = (np.zeros((1024,) + s, t) for s, t in shapes)
+            self.asp[:] = -1
+        self.arrays = tuple(law_arrays)
 
     @property
     def has_history(self) -> bool:
@@ -96,11 +107,11 @@ class ContactState:
 
     @property
     def nbytes(self) -> int:
-        """Bytes held: birth angles, flags, and the slot arrays (all capacity)."""
+        """Bytes in use: birth angles, flags and the slots in use (reserved slots beyond are not memory)."""
         total = 0 if self.theta_birth is None else self.theta_birth.nbytes
         if self.has_history:
-            total += self.flag.nbytes + self.asp.nbytes + self.dn_c.nbytes + self.code.nbytes
-            total += sum(a.nbytes for a in self.arrays)
+            m = self.n_slots
+            total += self.flag.nbytes + sum(a[:m].nbytes for a in (self.asp, self.dn_c, self.code, *self.arrays))
         return total
 
     # -- commit -----------------------------------------------------------------------------------
@@ -171,6 +182,7 @@ class ContactState:
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
 
     def _reserve(self, needed):
+        """Room for ``needed`` slots: grows the arrays of 1024 slots made when reserving was refused."""
         cap = self.asp.size
         if needed <= cap:
             return
@@ -224,6 +236,8 @@ class ContactState:
             m = asp.shape[0] if asp.ndim == 1 else -1
             flag = _checked(arrays, "flag", (pop.n,), np.uint8)
             asp = _checked(arrays, "asp", (m,), np.int32)
+            if m > max(pop.n, 1):
+                raise ValueError(f"slot map holds {m} slots for {pop.n} asperities")
             if m and (asp.max() >= pop.n or asp.min() < -1):
                 raise ValueError(f"slot map holds asperity indices outside [-1, {pop.n - 1}]")
             live = asp[asp >= 0]
