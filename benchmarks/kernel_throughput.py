@@ -89,7 +89,7 @@ def time_mdr(pop, repeat, k=16):
             "commit_seconds": commit_s, "slots": hist.n_slots,
             "bytes_per_asperity_population": pop.nbytes / pop.n,
             "bytes_per_asperity_history": hist.nbytes / pop.n,
-            "bytes_per_contact_slot": slot_bytes / max(hist.asp.size, 1)}
+            "bytes_per_contact_slot": slot_bytes / max(hist.n_slots, 1)}
 
 
 def first_call(cache_dir):
