@@ -229,3 +229,35 @@ def test_stderr_of_solved_closure_and_shear_stress_match_replicas():
     tol = 4 * math.sqrt(1 / (2 * (REPLICAS - 1)))  # 4 s.e. of a sample standard deviation
     assert abs(d1.std(ddof=1) / se_d1 - 1) < tol
     assert abs(s2.std(ddof=1) / se_s2 - 1) < tol
+
+
+# --------------------------------------------------------------------------- standard error of the area
+
+def test_area_stderr_with_one_stress_control_is_the_pseudo_inverse_formula_bit_for_bit():
+    """With one stress-controlled component the area's standard error is computed on Python floats; it is the
+    delta-method formula with the pseudo-inverse of the tangent block (numpy's pinv), to the last bit, also for a
+    zero tangent (pinv gives 0) and negative ones."""
+    from types import SimpleNamespace
+
+    from asperity_sim.solve.stepping import area_stderr
+
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        L = rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(-3, 3)
+        tangent = rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(9, 15)
+        k = trial % 3
+        if trial % 50 == 0:
+            tangent[k, k] = 0.0
+        own = trial % 4 == 1  # else the terms of the tangent dominate, or are all there is (var 0, no cov)
+        ev = SimpleNamespace(tangent=tangent, covariance=L @ L.T,
+                             contact_area_var=float(rng.uniform(0, 1e-4)) if own else 0.0,
+                             contact_area_grad=rng.normal(size=3) * 1e4,
+                             contact_area_cov=rng.normal(size=3) * 1e-2 * (trial % 4 != 2))
+        free = np.zeros(3, dtype=bool)
+        free[k] = True
+        A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
+        h = A.T @ ev.contact_area_grad[free]
+        C = ev.covariance[np.ix_(free, free)]
+        var = ev.contact_area_var - 2.0 * float(h @ ev.contact_area_cov[free]) + float(h @ C @ h)
+        want = math.sqrt(var) if var > 0.0 else 0.0
+        assert area_stderr(ev, free) == want

@@ -145,6 +145,14 @@ def area_stderr(ev, free) -> float:
     """
     var = ev.contact_area_var
     free = np.asarray(free, dtype=bool)
+    mask = free.tolist()
+    if sum(mask) == 1:  # the common case on Python floats: the pseudo-inverse of t_kk is 1/t_kk (0 if t_kk = 0)
+        k = mask.index(True)
+        t_kk = ev.tangent.item(k, k)
+        if math.isfinite(t_kk):
+            h = (1.0 / t_kk if t_kk != 0.0 else 0.0) * ev.contact_area_grad.item(k)
+            var = var - 2.0 * (h * ev.contact_area_cov.item(k)) + h * ev.covariance.item(k, k) * h
+            return sqrt_nonneg(var)
     if free.any():
         A = np.linalg.pinv(ev.tangent[np.ix_(free, free)], rcond=1e-12)
         h = A.T @ ev.contact_area_grad[free]
