@@ -90,7 +90,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "same_numbers.json", "history_law_against_0.3.json", "cold_start.json", "whole_run.json",
            "same_numbers_first_run.md", "same_numbers_first_run.json", "cold_start_ed6517e.json",
            "same_numbers_threads.md", "same_numbers_threads.json", "same_numbers_reserve.md",
-           "same_numbers_reserve.json", "whole_run_3c1d6f0.json")
+           "same_numbers_reserve.json", "whole_run_3c1d6f0.json", "same_numbers_stderr.md",
+           "same_numbers_stderr.json")
 
 
 def script_path(name: str) -> Path:
