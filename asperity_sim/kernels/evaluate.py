@@ -115,7 +115,6 @@ class Workspace:
     AHEAD = 8  # the index box reaches this many times the step from the committed displacement
 
     def __init__(self, n, index=True):
-        self.n = n
         n_chunks = (n + CHUNK - 1) // CHUNK
         self.partial = np.zeros((n_chunks, N_ACC))
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
@@ -150,7 +149,7 @@ class Workspace:
         """The slot geometry array, for as many slots as the population has asperities (reserved: only the slots
         in use cost memory, :func:`asperity_sim.memory.reserve`)."""
         if self.slot_geo.shape[1] < n_slots:
-            self.slot_geo = reserve((N_SLOT_GEO, max(self.n, n_slots)))
+            self.slot_geo = reserve((N_SLOT_GEO, max(self.spans.shape[0] * CHUNK, n_slots)))
         return self.slot_geo
 
     def fresh_index(self, pop, d, delta_c, n_active):
@@ -399,4 +398,3 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
                pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
                out["delta_n"], out["theta"], out["force"], out["state"])
     return out
-
