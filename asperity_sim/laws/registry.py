@@ -26,7 +26,8 @@ class NoOptions(Options):
 class History:
     """What a history law keeps per contact, and its two kernels.
 
-    arrays : (capacity, options) -> tuple of zeroed arrays whose first axis is the slot
+    arrays : (capacity, options) -> tuple of zeroed arrays whose first axis is the slot (the committed
+        state takes their shapes and dtypes and reserves zeroed arrays of them for every slot)
     trial, commit : numba kernels (see the module docstring)
     events : name of the per-step count that ``commit`` returns as ``events`` (e.g. coarsenings),
         one of the law's ``variables``
