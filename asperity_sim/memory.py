@@ -30,4 +30,3 @@ def reserve(shape, dtype=np.float64) -> np.ndarray:
     except (OSError, ValueError, AttributeError):  # no room to map it, or no anonymous maps here
         return np.zeros(shape, dtype=dtype)
     return np.frombuffer(buf, dtype=dtype, count=n // dtype.itemsize).reshape(shape)
-

@@ -1,5 +1,6 @@
 """Reserved arrays (asperity_sim.memory): zeroed, writable, usable by the kernels, and memory only where written."""
 
+import os
 import sys
 
 import numba
@@ -11,7 +12,7 @@ from asperity_sim.memory import SMALL, reserve
 
 def resident_bytes():
     with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * 4096
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
 @pytest.mark.parametrize("shape, dtype", [((10,), np.float64), ((1000, 2, 32), np.float32), ((300_000,), np.int8),

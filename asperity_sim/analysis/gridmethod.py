@@ -318,8 +318,8 @@ def simulate_grid(params: InterfaceParams, path: LoadPath, resolution: GridResol
             sig = F(x)
             it = 0
             if free.any():
-                x, sig, it, _, T = grid_newton(F, x, sig, free, np.where(free, target_s, 0.0), h, rtol, max_iter,
-                                           full_tangent)
+                x, sig, it, _, T = grid_newton(F, x, sig, free, np.where(free, target_s, 0.0), h, rtol,
+                                               max_iter, full_tangent)
             elif full_tangent:  # Steps 2-4 once: nothing to solve, the tangent is still evaluated
                 T = fd_tangent(F, x, sig, h, range(3))
             disp.append(x.copy())

@@ -115,7 +115,7 @@ class Workspace:
     AHEAD = 8  # the index box reaches this many times the step from the committed displacement
 
     def __init__(self, n, index=True):
-        n_chunks = (n + CHUNK - 1) // CHUNK
+        n_chunks = chunks_of(n, CHUNK)
         self.partial = np.zeros((n_chunks, N_ACC))
         self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
         self.fresh_key = None
@@ -253,13 +253,13 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
             kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
                                   state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
             return evaluation_from(d, out)
-        n_rows = (n_active + CHUNK - 1) // CHUNK
+        n_rows = chunks_of(n_active, CHUNK)
         run_chunks(kern["reduce_parallel"], n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
                    k_e, state.consts, tb, tan_max, workspace.partial)
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
-        n_pop = (n_active + CHUNK - 1) // CHUNK
-        n_slot = (state.n_slots + CHUNK - 1) // CHUNK
+        n_pop = chunks_of(n_active, CHUNK)
+        n_slot = chunks_of(state.n_slots, CHUNK)
         partial = workspace.rows(n_pop + n_slot)
         workspace.fresh_key = None
         index = workspace.fresh_index(pop, d, state.delta_c, n_active)

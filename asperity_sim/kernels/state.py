@@ -146,8 +146,8 @@ class ContactState:
     def _commit_history(self, delta, n_active, tan_max, tb, spans, geo) -> CommitResult:
         pop, p = self.pop, self.pop.params
         kern = kernels(self.law, birth=tb.size > 0)
-        n_slot_chunks = (self.n_slots + CHUNK - 1) // CHUNK
-        n_pop_chunks = (n_active + CHUNK - 1) // CHUNK
+        n_slot_chunks = chunks_of(self.n_slots, CHUNK)
+        n_pop_chunks = chunks_of(n_active, CHUNK)
         if self._partial.shape[0] < n_slot_chunks + 1:
             self._partial = np.zeros((2 * n_slot_chunks + 16, N_COMMIT))
         if self._counts.size < n_pop_chunks:
@@ -167,7 +167,7 @@ class ContactState:
             self._reserve(self.n_slots + n_new)
             new_slots = np.empty(n_new, dtype=np.int64)
             self.n_slots = int(assign_slots(self.flag, counts, self.asp, self.n_slots, new_slots))
-            n_new_chunks = (n_new + CHUNK - 1) // CHUNK
+            n_new_chunks = chunks_of(n_new, CHUNK)
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])

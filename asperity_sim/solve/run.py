@@ -106,7 +106,7 @@ class Run:
                         "transitions": np.zeros((4, 4), dtype=np.int64)} if self.law.history is not None else {})
         self.pos = Position()
         record_step(self.rec, params, self.ev, stage=0, control=np.zeros(3, bool), iterations=0, residual=0.0,
-                cutbacks=0, **self.energy, **self.domain_flags(0, self.ev.delta, self.ev.stress))
+                    cutbacks=0, **self.energy, **self.domain_flags(0, self.ev.delta, self.ev.stress))
         if 0 in self.snap_steps:
             self.take_snapshot(0)
 
@@ -318,8 +318,8 @@ class Run:
                         pos.k_ref = max(pos.k_ref, effective_stiffness(ev, free, ramped))
                     done_in_stage += 1
                     record_step(rec, params, ev, stage=i_stage, control=free, iterations=result.iterations,
-                            residual=result.residual, cutbacks=cuts, **self.energy,
-                            **self.domain_flags(rec.size, ev.delta, ev.stress))
+                                residual=result.residual, cutbacks=cuts, **self.energy,
+                                **self.domain_flags(rec.size, ev.delta, ev.stress))
                     if result.residual > settings.rtol:  # accepted at the floating-point resolution of Delta
                         attrs["increments_at_resolution"] = attrs.get("increments_at_resolution", 0) + 1
                     step = rec.size - 1
