@@ -16,7 +16,9 @@ process, because absolute times drift on a shared machine):
    two tangential directions (2 k float64) per contact at the largest contact count of the run
    (the issue's reading; target <= 1.1), and the springs the contacts have in contact at the end
    of the run (between k and 2k each: a contact grows after its springs are spaced).  The bytes
-   the mdr state holds in use at the end are reported beside it.
+   the mdr state holds in use at the end are reported beside it, and the same run with the
+   springs stored in float32 (``spring_dtype``, an option; float64 is the default): its peak
+   against the same reference, and its largest stress difference from the float64 run.
 3. **Threads**: the same path at ``--thread-n`` asperities with 1 and with every thread numba
    has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
    >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
@@ -58,6 +60,9 @@ PATHS = {"benchmark": bench_path, "fig13": lambda: paths.constant_normal_shear(5
 
 
 def law_kw(law):
+    """Keywords of ``simulate`` for ``law``; ``mdr32`` is ``mdr`` with its springs stored in float32."""
+    if law == "mdr32":
+        return {"law": "mdr", "k": K, "spring_dtype": "float32"}
     return {"law": law, "k": K} if law == "mdr" else {"law": law}
 
 
@@ -140,32 +145,46 @@ if st.has_history:  # the springs in contact at the end (the largest contact cou
     held = int(np.minimum(N, st.n_stored).sum())
 print(json.dumps({"n": n, "law": law, "peak_rss": peak, "peak_rss_before": before,
                   "contacts_max": int(ds.n_contact.values.max()), "contacts_end": int(ds.n_contact.values[-1]),
-                  "springs_in_contact_end": held, "state_bytes": int(st.nbytes), "population_bytes": int(pop.nbytes)}))
+                  "springs_in_contact_end": held, "state_bytes": int(st.nbytes), "population_bytes": int(pop.nbytes),
+                  "stress": ds.stress.values.tolist()}))
 """
 
 
-def memory(sizes):
+def memory_case(n, law):
+    """The MEMORY script's record of ``law`` at n asperities, in a fresh process."""
     here = str(Path(__file__).resolve().parent)
+    p = subprocess.run([sys.executable, "-c", MEMORY, str(n), law, here], capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(f"memory case n = {n}, law {law} failed:\n{p.stderr[-2000:]}")
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def memory(sizes):
+    laws = ("paper", "mdr", "mdr32")
+    for law in laws:  # fill the numba cache first: a compile in the measured process would set its peak
+        memory_case(2000, law)
     out = {}
     for n in sizes:
-        res = {}
-        for law in ("paper", "mdr"):
-            p = subprocess.run([sys.executable, "-c", MEMORY, str(n), law, here], capture_output=True, text=True)
-            if p.returncode:
-                raise RuntimeError(f"memory case n = {n}, law {law} failed:\n{p.stderr[-2000:]}")
-            res[law] = json.loads(p.stdout.strip().splitlines()[-1])
+        res = {law: memory_case(n, law) for law in laws}
         springs = res["mdr"]["contacts_max"] * 2 * K * 8
         ratio = res["mdr"]["peak_rss"] / (res["paper"]["peak_rss"] + springs)
         held = res["mdr"]["springs_in_contact_end"] * 2 * 8  # both components, float64
         ratio_held = res["mdr"]["peak_rss"] / (res["paper"]["peak_rss"] + held)
-        res.update(springs_bytes=springs, ratio=ratio, springs_in_contact_bytes=held, ratio_in_contact=ratio_held)
+        # the float32 option: the same springs in half the bytes, against the same float64 reference
+        ratio32 = res["mdr32"]["peak_rss"] / (res["paper"]["peak_rss"] + springs)
+        s64, s32 = (np.array(res[law].pop("stress")) for law in ("mdr", "mdr32"))
+        res["paper"].pop("stress")
+        diff32 = float(np.abs(s32 - s64).max() / np.abs(s64).max())
+        res.update(springs_bytes=springs, ratio=ratio, springs_in_contact_bytes=held, ratio_in_contact=ratio_held,
+                   ratio_float32=ratio32, stress_difference_float32=diff32)
         out[str(n)] = res
         print(f"  n = {n}: peak paper {res['paper']['peak_rss'] / 2**20:.0f} MiB, mdr {res['mdr']['peak_rss'] / 2**20:.0f}"
               f" MiB; k springs for each of {res['mdr']['contacts_max']} contacts {springs / 2**20:.0f} MiB -> mdr / "
               f"(paper + springs) = {ratio:.2f} (target <= 1.1); the springs in contact at the end "
               f"({res['mdr']['springs_in_contact_end'] / res['mdr']['contacts_end']:.1f} per contact) "
-              f"{held / 2**20:.0f} MiB -> {ratio_held:.2f}; the mdr state holds {res['mdr']['state_bytes'] / 2**20:.0f} MiB",
-              flush=True)
+              f"{held / 2**20:.0f} MiB -> {ratio_held:.2f}; the mdr state holds {res['mdr']['state_bytes'] / 2**20:.0f} MiB"
+              f"; with float32 springs mdr {res['mdr32']['peak_rss'] / 2**20:.0f} MiB -> {ratio32:.2f} (largest stress "
+              f"difference / largest stress {diff32:.1e})", flush=True)
     return out
 
 
