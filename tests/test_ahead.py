@@ -1,8 +1,10 @@
-"""Compiling a history law's commit kernels ahead in a helper process (asperity_sim/kernels/ahead.py).
+"""Compiling a law's last-needed kernels ahead in a helper process (asperity_sim/kernels/ahead.py).
 
 The helper compiles exactly the kernels a run calls (the run then loads them from the cache and
-compiles none of them itself), a first run with the helper gives the bits of one without it, and
-a helper that fails leaves the run to compile the kernels itself.
+compiles none of them itself): a history law's commit kernels, the evaluation kernel of a law
+without history; a first run with the helper gives the bits of one without it, a helper that
+fails leaves the run to compile the kernels itself, and the helper starts once, at the first
+compile of the run a driver announced.
 """
 
 import json
@@ -20,22 +22,23 @@ from asperity_sim.kernels.specialise import kernels
 ROOT = Path(__file__).resolve().parent.parent
 
 RUN = """
-import json
+import json, sys
 import asperity_sim as asim
 from asperity_sim import paths, presets
 from asperity_sim.kernels.specialise import kernels
-ds = asim.simulate(presets.R1, paths.constant_normal_shear(300e6, 10e-6, increments=12), n=1500, seed=2, law="mdr")
-compiled = sorted(name for name, k in kernels("mdr").items()
+law = sys.argv[1]
+ds = asim.simulate(presets.R1, paths.constant_normal_shear(300e6, 10e-6, increments=12), n=1500, seed=2, law=law)
+compiled = sorted(name for name, k in kernels(law).items()
                   for cres in k.overloads.values() if "compiler_lock" in (cres.metadata or {}).get("timers", {}))
-print(json.dumps({"stress": ds.stress.values.tolist(), "energy": ds.elastic_energy.values.tolist(),
-                  "compiled_here": compiled}))
+energy = ds.elastic_energy.values.tolist() if "elastic_energy" in ds else None
+print(json.dumps({"stress": ds.stress.values.tolist(), "energy": energy, "compiled_here": compiled}))
 """
 
 
-def _run(cache, compile_ahead):
+def _run(cache, compile_ahead, law="mdr"):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "NUMBA_NUM_THREADS": "2", ahead.ENV: compile_ahead,
            "PYTHONPATH": str(ROOT)}
-    done = subprocess.run([sys.executable, "-c", RUN], env=env, capture_output=True, text=True, timeout=900)
+    done = subprocess.run([sys.executable, "-c", RUN, law], env=env, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -51,6 +54,16 @@ def test_a_first_run_loads_the_helpers_commit_kernels_and_gives_the_same_bits(tm
     assert {"fresh_pass", "slot_pass"} <= set(helped["compiled_here"])  # and compiles its trial meanwhile
 
 
+@pytest.mark.slow  # two first runs of paper, each with an empty numba cache
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="the helper needs a second core")
+def test_a_first_paper_run_loads_the_helpers_evaluation_kernel_and_gives_the_same_bits(tmp_path):
+    alone = _run(tmp_path / "alone", "0", law="paper")
+    helped = _run(tmp_path / "helped", "1", law="paper")
+    assert helped["stress"] == alone["stress"]
+    assert "reduce_serial" in alone["compiled_here"]  # without a helper the run compiles it
+    assert "reduce_serial" not in helped["compiled_here"]  # with one it loads it
+
+
 def test_wait_for_returns_at_once_for_a_kernel_no_helper_compiles():
     ahead.wait_for(kernels("mdr")["commit_slots"])  # nothing pending in this process: no wait, no error
 
@@ -64,7 +77,39 @@ def test_a_helper_that_fails_releases_its_kernels():
     assert not ahead.pending()
 
 
-def test_only_the_laws_a_fresh_process_knows_and_that_commit_get_a_helper():
+def test_a_law_without_history_gets_a_helper_for_its_evaluation_kernel_under_policy_follow_only():
     assert {"paper", "mdr"} <= ahead.BUILT_IN
-    assert not ahead.start("paper", False)  # no history: nothing to commit
+    assert not ahead.start("paper", True)  # policy birth: none
     assert not ahead.pending()
+    for serial in (True, False):
+        assert ahead.start("paper", False, helper="asperity_sim.no_such_module", serial=serial)
+        kern = kernels("paper")[ahead.evaluation_kernel(serial)]
+        assert ahead.pending() == {kern.py_func.__qualname__}
+        ahead.wait_for(kern)
+        assert not ahead.pending()
+
+
+class _Event:
+    def __init__(self, dispatcher):
+        self.data = {"dispatcher": dispatcher}
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="the helper needs a second core")
+def test_the_helper_of_an_announced_run_starts_once_at_the_first_compile_of_any_package_kernel(monkeypatch):
+    from asperity_sim.kernels.reach import bounds
+
+    monkeypatch.setenv(ahead.ENV, "1")
+    started = []
+    monkeypatch.setattr(ahead, "start", lambda law, birth, serial=True: started.append((law, birth, serial)))
+    monkeypatch.setattr(ahead, "_EXPECTED", [])
+    listener = ahead._FirstCompile()
+    ahead.expect("paper", False, False)  # more asperities than the serial kernel takes
+    listener.on_start(_Event(bounds))  # a shared kernel (sampling, bounds) is the first compile
+    listener.on_start(_Event(bounds))
+    assert started == [("paper", False, False)]
+    # a run whose first compile is the helper's own kernel compiles it itself: no helper
+    started.clear()
+    listener = ahead._FirstCompile()
+    ahead.expect("paper", False, True)
+    listener.on_start(_Event(kernels("paper")["reduce_serial"]))
+    assert started == []

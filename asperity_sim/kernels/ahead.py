@@ -1,13 +1,20 @@
-"""Compile ahead on the other core: a history law's commit kernels, while this process compiles its trial.
+"""Compile ahead on the other core: the kernels a first run needs last, while this process compiles the others.
 
-Owns :func:`start`, :func:`wait_for` and the listener that starts the helper.  The first run of
-a history law with an empty numba cache compiles its trial kernels, then its commit kernels, one after the
-other on one core.  When numba starts compiling the first kernel of a law and policy in this
-process (a cache miss: :mod:`asperity_sim.jit` names the group), a helper process
-(:mod:`asperity_sim.kernels.ahead_helper`) compiles the commit kernels of that law and policy on
-a tiny population into numba's on-disk cache, and says the name of each as it is done; before
-this process first calls one of them (:meth:`~asperity_sim.kernels.state.ContactState.commit`),
-:func:`wait_for` waits until the helper has said it, and numba loads it from the cache.
+Owns :func:`expect`, :func:`start`, :func:`wait_for` and the listener that starts the helper.
+A first run with an empty numba cache compiles its kernels one after the other on one core:
+the sampling kernels, then the evaluation (for a history law its trial, then its commit). A
+helper process (:mod:`asperity_sim.kernels.ahead_helper`) compiles the ones needed last on a
+tiny population into numba's on-disk cache, and says the name of each as it is done:
+
+- a history law: its commit kernels (:data:`COMMIT_KERNELS`), while this process compiles the trial;
+- a law without history (policy follow): its evaluation kernel (:func:`evaluation_kernel`: the
+  serial one for a population that fits it, else the parallel one), while this process compiles
+  the sampling kernels.
+
+The helper starts when numba starts compiling the first kernel of the package in this process
+(a cache miss) for the run a driver announced (:func:`expect`), or, without one, the first kernel
+of a history law's group. Before this process first calls a helper's kernel, :func:`wait_for`
+waits until the helper has said it, and numba loads it from the cache.
 
 Only where it pays and cannot surprise: a law registered when the package is imported (one
 registered at run time is unknown to a fresh process), more than one numba thread (a spare
@@ -27,26 +34,40 @@ from numba.core import event
 
 from .. import jit, laws
 
-__all__ = ["wait_for", "start", "pending", "commit_kernel_names", "ENV"]
+__all__ = ["wait_for", "start", "expect", "pending", "kernel_names", "evaluation_kernel", "ENV"]
 
 ENV = "ASPERITY_SIM_COMPILE_AHEAD"
 """Environment variable: ``0`` turns compiling ahead off (the helper runs with it)."""
 HELPER = "asperity_sim.kernels.ahead_helper"
 """The module the helper runs."""
 COMMIT_KERNELS = ("commit_fresh", "commit_slots")
-"""The kernels the helper compiles, in the order a run first calls them."""
+"""The kernels the helper compiles for a history law, in the order a run first calls them."""
 
 BUILT_IN = frozenset(laws.LAWS)
 """The laws a fresh process knows (registered when the package is imported): the only ones a helper can compile."""
 _PENDING: dict = {}  # kernel qualname -> the helper compiling it
 _LOCK = threading.Lock()
+_EXPECTED: list = []  # (law name, birth, serial) of the run being set up in this process (expect)
 
 
-def commit_kernel_names(law, birth: bool) -> list:
-    """The qualified names of the law's :data:`COMMIT_KERNELS` under the policy, in order (what the helper says)."""
+def evaluation_kernel(serial: bool) -> str:
+    """The evaluation kernel of a law without history: the serial one (populations that fit it) or the parallel."""
+    return "reduce_serial" if serial else "reduce_parallel"
+
+
+def kernel_names(law, birth: bool, serial: bool = True) -> list:
+    """The qualified names of the kernels a helper compiles for the law under the policy, in the order it says them:
+    a history law's :data:`COMMIT_KERNELS`, else its :func:`evaluation_kernel`."""
     from .specialise import kernels  # specialise imports the templates, which are heavy: only when needed
 
-    return [kernels(law, birth=birth)[k].py_func.__qualname__ for k in COMMIT_KERNELS]
+    keys = COMMIT_KERNELS if law.history is not None else (evaluation_kernel(serial),)
+    return [kernels(law, birth=birth)[k].py_func.__qualname__ for k in keys]
+
+
+def expect(law_name: str, birth: bool, serial: bool) -> None:
+    """Announce the run this process sets up next (its law, policy, and whether its population fits the serial
+    kernel): a helper for it starts at the first compile of any kernel of the package, before the run needs its own."""
+    _EXPECTED[:] = [(law_name, birth, serial)]
 
 
 def pending() -> set:
@@ -57,6 +78,8 @@ def pending() -> set:
 
 def wait_for(dispatcher) -> None:
     """Return once no helper is compiling ``dispatcher`` (at once, unless a helper was started for it)."""
+    if not _PENDING:  # the common case, once the cache is warm: no lock
+        return
     name = dispatcher.py_func.__qualname__
     with _LOCK:
         process = _PENDING.get(name)
@@ -73,22 +96,22 @@ def wait_for(dispatcher) -> None:
             _PENDING.pop(line.strip(), None)
 
 
-def start(law_name: str, birth: bool, helper: str = HELPER) -> bool:
-    """Start the helper (module ``helper``) for the commit kernels of a history law under a policy; False if
-    there is none to start (a law without history, or unknown to a fresh process) or it cannot be started."""
+def start(law_name: str, birth: bool, helper: str = HELPER, serial: bool = True) -> bool:
+    """Start the helper (module ``helper``) for the kernels of :func:`kernel_names`; False if there is none to start
+    (a law unknown to a fresh process, a law without history under policy birth) or it cannot be started."""
     law = laws.get(law_name)
-    if law.history is None or law.name not in BUILT_IN:
+    if law.name not in BUILT_IN or (law.history is None and birth):
         return False
     if getattr(sys, "frozen", False):  # a bundled application: sys.executable is not a Python to run -m with
         return False
-    names = commit_kernel_names(law, birth)
+    names = kernel_names(law, birth, serial)
     # this very package first on the helper's path, whatever put it on this process's
     path = os.pathsep.join(p for p in (str(jit.PACKAGE.parent), os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, ENV: "0", "PYTHONPATH": path}
+    args = [law.name, "birth" if birth else "follow", "serial" if serial else "parallel"]
     try:
-        process = subprocess.Popen([sys.executable, "-m", helper, law.name, "birth" if birth else "follow"],
-                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
-                                   env=env, text=True)
+        process = subprocess.Popen([sys.executable, "-m", helper, *args], stdout=subprocess.PIPE,
+                                   stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL, env=env, text=True)
     except OSError:
         return False
     with _LOCK:
@@ -98,22 +121,29 @@ def start(law_name: str, birth: bool, helper: str = HELPER) -> bool:
 
 
 class _FirstCompile(event.Listener):
-    """Starts the helper when numba first compiles a kernel of a history law's group in this process."""
+    """Starts the helper when numba first compiles a kernel of the package in this process: for the run announced
+    by :func:`expect`, else (at the first kernel of a history law's group) for that law."""
 
     def __init__(self):
-        self.seen = set()
+        self.seen = set()  # (law name, birth) a helper was started or considered for
 
     def on_start(self, ev):
         f = getattr((ev.data or {}).get("dispatcher"), "py_func", None)
         if f is None or os.environ.get(ENV, "1") == "0" or numba.get_num_threads() < 2:
             return
         group = jit.group_of(f)
-        if group in (None, "shared") or group in self.seen:
+        if group is None:
             return
-        self.seen.add(group)
+        if _EXPECTED and _EXPECTED[0][:2] not in self.seen:
+            law, birth, serial = _EXPECTED[0]
+            self.seen.add((law, birth))
+            if f.__qualname__ not in kernel_names(laws.get(law), birth, serial):  # else this process compiles it now
+                start(law, birth, serial=serial)
         law, _, policy = group.rpartition("_")
-        if law in BUILT_IN and policy in ("follow", "birth"):
-            start(law, policy == "birth")
+        if law in BUILT_IN and policy in ("follow", "birth") and (law, policy == "birth") not in self.seen:
+            self.seen.add((law, policy == "birth"))
+            if laws.get(law).history is not None:  # a law without history: its first kernel is the one to help
+                start(law, policy == "birth")
 
     def on_end(self, ev):
         pass

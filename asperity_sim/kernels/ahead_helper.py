@@ -1,10 +1,15 @@
-"""The helper process of :mod:`asperity_sim.kernels.ahead`: compile a history law's commit kernels into the cache.
+"""The helper process of :mod:`asperity_sim.kernels.ahead`: compile a law's last-needed kernels into the cache.
 
-Run as ``python -m asperity_sim.kernels.ahead_helper <law> <follow|birth>``: a three-asperity
-population (no sampling kernels) under the law and policy is committed twice, at displacements
-where all three touch, which compiles the commit of contacts born (``commit_fresh``) and then of
-committed contacts (``commit_slots``) with the argument types of any run; each kernel's name is
-printed as soon as numba has written it to its cache.
+Run as ``python -m asperity_sim.kernels.ahead_helper <law> <follow|birth> [serial|parallel]``,
+with populations given as arrays (no sampling kernels):
+
+- a history law: three asperities committed twice, at displacements where all three touch,
+  which compiles the commit of contacts born (``commit_fresh``) and then of committed contacts
+  (``commit_slots``) with the argument types of any run;
+- a law without history: one evaluation where every asperity touches, of three asperities
+  (``serial``: the serial kernel) or of one more than the serial kernel takes (``parallel``).
+
+Each kernel's name is printed as soon as numba has written it to its cache.
 """
 
 from __future__ import annotations
@@ -13,20 +18,34 @@ import sys
 
 import numpy as np
 
-from .. import presets
+from .. import laws, presets
 from ..sampling.population import Population
-from .ahead import commit_kernel_names
+from .ahead import kernel_names
+from .evaluate import evaluate
+from .layout import CHUNK, SERIAL_CHUNKS
 from .state import ContactState
 
 
 def main(argv=None) -> int:
-    law, policy = (sys.argv[1:] if argv is None else argv)[:2]
+    args = sys.argv[1:] if argv is None else argv
+    law, policy = args[:2]
+    serial = (args[2] if len(args) > 2 else "serial") == "serial"
+    birth = policy == "birth"
     p = presets.R1
-    pop = Population.from_arrays(p, [0.0, 0.1 * p.beta, 0.2 * p.beta], [p.R_m] * 3, [0.3, 0.6, 0.9], [0.0, 1.0, 2.0])
-    state = ContactState(pop, law=law, policy=policy)
-    for name, d2 in zip(commit_kernel_names(law, policy == "birth"), (0.0, 0.1 * p.beta)):
-        state.commit(np.array([p.beta, d2, 0.0]))
-        print(name, flush=True)
+    names = kernel_names(laws.get(law), birth, serial)
+    if laws.get(law).history is not None:
+        pop = Population.from_arrays(p, [0.0, 0.1 * p.beta, 0.2 * p.beta], [p.R_m] * 3, [0.3, 0.6, 0.9],
+                                     [0.0, 1.0, 2.0])
+        state = ContactState(pop, law=law, policy=policy)
+        for name, d2 in zip(names, (0.0, 0.1 * p.beta)):
+            state.commit(np.array([p.beta, d2, 0.0]))
+            print(name, flush=True)
+        return 0
+    n = 3 if serial else SERIAL_CHUNKS * CHUNK + 1
+    pop = Population.from_arrays(p, np.linspace(0.0, 0.2 * p.beta, n), np.full(n, p.R_m), np.linspace(0.3, 0.9, n),
+                                 np.linspace(0.0, 2.0, n))
+    evaluate(pop, np.array([p.beta, 0.0, 0.0]), law=law, policy=policy)
+    print(names[0], flush=True)
     return 0
 
 

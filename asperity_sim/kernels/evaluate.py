@@ -54,10 +54,11 @@ from .layout import (
     O_STRESS,
     O_TANGENT,
     O_TH,
-    SERIAL_CHUNKS,
+    fits_serial,
     finish,
 )
 from . import interaction
+from .ahead import wait_for
 from .history import scan_chunks
 from .reach import bounds
 from .specialise import kernels
@@ -245,15 +246,17 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
     kern = kernels(law, birth=tb.size > 0)
     if law.path_independent:
         # a population that fits the serial kernel: it finds its own bounds
-        serial = serial_fits(pop)
+        serial = fits_serial(pop.n)
         if not serial:
             n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
-            serial = n_active <= SERIAL_CHUNKS * CHUNK
+            serial = fits_serial(n_active)
         if serial:
+            wait_for(kern["reduce_serial"])  # a first run: the helper may be compiling it (kernels.ahead)
             kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
                                   state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
             return evaluation_from(d, out)
         n_rows = chunks_of(n_active, CHUNK)
+        wait_for(kern["reduce_parallel"])
         run_chunks(kern["reduce_parallel"], n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
                    k_e, state.consts, tb, tan_max, workspace.partial)
     else:
@@ -285,11 +288,6 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
 def _row(d):
     """d (3,) as a C-contiguous (1, 3) view or copy: the one array layout the serial kernel is compiled for."""
     return np.ascontiguousarray(d).reshape(1, 3)
-
-
-def serial_fits(pop) -> bool:
-    """True when the whole population fits the serial kernel of a path-independent law (small populations)."""
-    return pop.n <= SERIAL_CHUNKS * CHUNK
 
 
 @dataclass(frozen=True)
@@ -353,7 +351,7 @@ def evaluate_steps(pop, deltas, workspace, law="paper") -> Steps:
     """The responses of a path-independent law under policy follow at each row of ``deltas`` (m, 3) [m].
 
     One call of the serial kernel for all rows, each bit-identical to :func:`evaluate` there;
-    meant for small populations (:func:`serial_fits`), where the per-call overhead of
+    meant for small populations (:func:`~asperity_sim.kernels.layout.fits_serial`), where the per-call overhead of
     :func:`evaluate` exceeds the kernel time.  ``deltas`` finite and C-contiguous,
     ``workspace`` a :class:`Workspace` for ``pop``; no elastic interaction (``params.interaction`` 0).
     """

@@ -23,6 +23,13 @@ BIRTH = False
 :mod:`asperity_sim.kernels.specialise`.  numba prunes the branches of a constant before it inlines and types
 them, so a copy never compiles the other policy's loops."""
 SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
+
+
+def fits_serial(n: int) -> bool:
+    """True when n asperities that can touch fit the serial kernel of a path-independent law (SERIAL_CHUNKS chunks)."""
+    return n <= SERIAL_CHUNKS * CHUNK
+
+
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
 # tangent (9), contact and full-slip counts, sum of theta over contacts, partial-slip count,
 # contact area a, a², a f_i (3) and d a / d Delta_k (3)

@@ -21,7 +21,9 @@ from .. import laws
 from ..checks import check_delta
 from ..errors import ConvergenceError, Deadline, LawDomainWarning, OutputWriteError, WallTimeExceededError
 from ..geometry import closure
-from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked, serial_fits
+from ..kernels import ahead
+from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked
+from ..kernels.layout import fits_serial
 from ..kernels.state import ContactState
 from ..output.recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from ..output.variables import run_variables
@@ -58,6 +60,8 @@ class Run:
         self.resumed_from = None
         self.variables = run_variables(self.law)
         self.domain = DomainMonitor() if self.law.path_independent else None
+        # a first run: a helper compiles the kernels this run needs last while it compiles the first (kernels.ahead)
+        ahead.expect(self.law.name, policy == "birth", fits_serial(population.n if population is not None else n))
         restored = None
         if saved is not None:  # every array is checked before any kernel sees it
             restored = run_checkpoint.restore(saved, params=params, n_stages=len(path.stages), law=self.law,
@@ -251,7 +255,7 @@ class Run:
                 done_in_stage = rec.count("stage", i_stage)  # bounded: at most stage.budget increments
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
-                           and serial_fits(self.pop) and progress is None and params.interaction == 0.0)
+                           and fits_serial(self.pop.n) and progress is None and params.interaction == 0.0)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
                     if batches and cuts == 0 and not (max_wall_time is not None
