@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import numba
 import numpy as np
 from scipy import optimize
 
@@ -47,49 +49,70 @@ def _attrs(units, long_name):
     return {"units": units, "long_name": long_name}
 
 
-def add_reference(ds, params, level="default"):
+def add_reference(ds, params, level="default", threads=None):
     """Add the quadrature solution of the same path (``paper`` law, policy ``follow``).
 
     At every recorded step the displacement-controlled components are taken as recorded
     and each stress-controlled component is solved (one at most, by Brent's method) so
     that the quadrature stress equals the recorded target.  Adds ``reference_stress``
     (step, axis) [Pa] and ``reference_displacement`` (step, axis) [m].
+
+    The steps are independent, so they are solved ``threads`` at a time (default: numba's
+    thread count; the quadrature kernel releases the GIL), and within a step no displacement is
+    integrated twice (Brent's method starts from the bracket's ends, and its root is one of the
+    points it evaluated): the same numbers as one step after the other, in less time.
     """
     disp = ds["displacement"].values
     control = ds["control"].values.astype(bool)
     sig = ds["stress"].values
-    ref_s = np.empty_like(sig)
-    ref_d = disp.copy()
     for i in range(disp.shape[0]):
-        free = np.flatnonzero(control[i])
-        d = disp[i].copy()
-        if free.size > 1:
+        if np.count_nonzero(control[i]) > 1:
             raise ValueError("the reference handles one stress-controlled component at a time")
-        if free.size == 1 and sig[i, free[0]] != 0.0:
-            k = int(free[0])
-            target = sig[i, k]
-
-            def resid(x):
-                dd = d.copy()
-                dd[k] = x
-                return reference.stress(params, dd, level=level)[k] - target
-
-            # bracket around the Monte Carlo solution, widening until the sign changes
-            width = max(abs(d[k]) * 0.05, params.beta)
-            lo, hi = d[k] - width, d[k] + width
-            for _ in range(60):
-                if resid(lo) < 0.0 < resid(hi):
-                    break
-                lo, hi = lo - width, hi + width
-                width *= 2.0
-            d[k] = optimize.brentq(resid, lo, hi, xtol=1e-15, rtol=1e-13)
-        ref_d[i] = d
-        ref_s[i] = reference.stress(params, d, level=level)
+    threads = numba.get_num_threads() if threads is None else threads
+    with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
+        steps = list(pool.map(lambda i: _reference_step(params, disp[i], control[i], sig[i], level),
+                              range(disp.shape[0])))
+    ref_s = np.array([s for s, _ in steps]).reshape(sig.shape)
+    ref_d = np.array([d for _, d in steps]).reshape(disp.shape)
     ds["reference_stress"] = (("step", "axis"), ref_s,
                               _attrs("Pa", "quadrature reference stress (paper law, policy follow)"))
     ds["reference_displacement"] = (("step", "axis"), ref_d,
                                     _attrs("m", "quadrature reference displacement (paper law, policy follow)"))
     return ds
+
+
+def _reference_step(params, disp, control, sig, level):
+    """(stress, displacement) of the quadrature at one step of :func:`add_reference`."""
+    d = disp.copy()
+    free = np.flatnonzero(control)
+    known = {}  # stress at each displacement integrated, by the value (sign of zero included) of d[k]
+
+    def stress_at(x, k):
+        key = (x, math.copysign(1.0, x))
+        if key not in known:
+            dd = d.copy()
+            dd[k] = x
+            known[key] = reference.stress(params, dd, level=level)
+        return known[key]
+
+    if free.size == 1 and sig[free[0]] != 0.0:
+        k = int(free[0])
+        target = sig[k]
+
+        def resid(x):
+            return stress_at(x, k)[k] - target
+
+        # bracket around the Monte Carlo solution, widening until the sign changes
+        width = max(abs(d[k]) * 0.05, params.beta)
+        lo, hi = d[k] - width, d[k] + width
+        for _ in range(60):
+            if resid(lo) < 0.0 < resid(hi):
+                break
+            lo, hi = lo - width, hi + width
+            width *= 2.0
+        d[k] = optimize.brentq(resid, lo, hi, xtol=1e-15, rtol=1e-13)
+        return stress_at(float(d[k]), k).copy(), d
+    return reference.stress(params, d, level=level), d
 
 
 def z_scores(ds):

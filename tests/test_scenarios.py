@@ -81,3 +81,55 @@ def test_scenario_rejects_bad_options(run_script):
     done = run_script("scenarios/three_step.py", "--n", "0")
     assert done.returncode == 2  # argparse's usage error
     assert "--n = 0" in done.stderr and "Traceback" not in done.stderr
+
+
+def _reference_one_step_after_the_other(ds, params, level):
+    """The reference of ``scenarios/_common.add_reference`` written plainly: each step in turn, each displacement
+    integrated anew whenever Brent's method or the bracket asks for it."""
+    from scipy import optimize
+
+    from asperity_sim import reference
+
+    disp, sig = ds["displacement"].values, ds["stress"].values
+    control = ds["control"].values.astype(bool)
+    ref_s, ref_d = np.empty_like(sig), disp.copy()
+    for i in range(disp.shape[0]):
+        d = disp[i].copy()
+        free = np.flatnonzero(control[i])
+        if free.size == 1 and sig[i, free[0]] != 0.0:
+            k, target = int(free[0]), sig[i, free[0]]
+
+            def resid(x):
+                dd = d.copy()
+                dd[k] = x
+                return reference.stress(params, dd, level=level)[k] - target
+
+            width = max(abs(d[k]) * 0.05, params.beta)
+            lo, hi = d[k] - width, d[k] + width
+            for _ in range(60):
+                if resid(lo) < 0.0 < resid(hi):
+                    break
+                lo, hi, width = lo - width, hi + width, 2.0 * width
+            d[k] = optimize.brentq(resid, lo, hi, xtol=1e-15, rtol=1e-13)
+        ref_d[i], ref_s[i] = d, reference.stress(params, d, level=level)
+    return ref_s, ref_d
+
+
+def test_the_reference_on_threads_has_the_bits_of_one_step_after_the_other(monkeypatch):
+    """add_reference solves the steps on threads and never integrates a displacement twice; its curves are those of
+    the plain loop to the last bit, on a path with a stress-controlled stage (Brent's method at every step)."""
+    import sys
+    from pathlib import Path
+
+    from asperity_sim import paths, presets, simulate
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parent.parent / "scenarios"))
+    sys.modules.pop("_common", None)
+    from _common import add_reference
+
+    ds = simulate(presets.R1, paths.constant_normal_shear(300e6, 10e-6, increments=4), n=500, seed=3)
+    ref_s, ref_d = _reference_one_step_after_the_other(ds, presets.R1, "fast")
+    got = add_reference(ds.copy(), presets.R1, level="fast", threads=2)
+    assert np.array_equal(got["reference_stress"].values, ref_s)
+    assert np.array_equal(got["reference_displacement"].values, ref_d)
+    assert not np.array_equal(ref_d, ds["displacement"].values)  # the closures were solved for, not copied

@@ -205,7 +205,7 @@ def _phi_breaks(d1, S, ct, st, m, out):
     return nb
 
 
-@kernel()
+@kernel(nogil=True)  # no Python objects: callers may integrate several displacements on threads
 def stress_kernel(d1, S, c_psi, s_psi, mode, closure, k_e, E_star, lam, mu, alpha, beta,
                    log_norm, r_max, chunk, R_x, R_w, tu, wu, split_u, tp, wp, phi_chunk, b, c,
                    d, tj, wj, tg, wg, out):
