@@ -119,3 +119,15 @@ def test_the_helper_of_an_announced_run_starts_once_at_the_first_compile_of_any_
     ahead.expect("paper", False, True)
     listener.on_start(_Event(kernels("paper")["reduce_serial"]))
     assert started == []
+
+
+@pytest.mark.parametrize("mode", ["serial", "parallel"])
+def test_the_helper_says_the_evaluation_kernel_it_compiled(mode, capsys):
+    from asperity_sim import laws
+    from asperity_sim.kernels import ahead_helper
+
+    assert ahead_helper.main(["paper", "follow", mode]) == 0
+    said = capsys.readouterr().out.split()
+    assert said == ahead.kernel_names(laws.get("paper"), False, mode == "serial")
+    kern = kernels("paper")[ahead.evaluation_kernel(mode == "serial")]
+    assert kern.signatures  # the helper's evaluation went through the kernel it names
