@@ -131,3 +131,14 @@ def test_the_helper_says_the_evaluation_kernel_it_compiled(mode, capsys):
     assert said == ahead.kernel_names(laws.get("paper"), False, mode == "serial")
     kern = kernels("paper")[ahead.evaluation_kernel(mode == "serial")]
     assert kern.signatures  # the helper's evaluation went through the kernel it names
+
+
+def test_a_run_announces_itself_only_while_it_is_set_up(monkeypatch):
+    from asperity_sim import paths, presets, simulate
+
+    seen = []
+    real = ahead.expect
+    monkeypatch.setattr(ahead, "expect", lambda *a, **k: (seen.append(a[0]), real(*a, **k)))
+    simulate(presets.R1, paths.constant_normal_shear(300e6, 1e-6, increments=2), n=200, seed=1)
+    assert seen == ["paper", None]
+    assert ahead._EXPECTED == []  # a kernel compiled after the set-up starts no helper for it

@@ -64,10 +64,11 @@ def kernel_names(law, birth: bool, serial: bool = True) -> list:
     return [kernels(law, birth=birth)[k].py_func.__qualname__ for k in keys]
 
 
-def expect(law_name: str, birth: bool, serial: bool) -> None:
+def expect(law_name, birth: bool = False, serial: bool = True) -> None:
     """Announce the run this process sets up next (its law, policy, and whether its population fits the serial
-    kernel): a helper for it starts at the first compile of any kernel of the package, before the run needs its own."""
-    _EXPECTED[:] = [(law_name, birth, serial)]
+    kernel): a helper for it starts at the first compile of any kernel of the package, before the run needs its own.
+    ``law_name`` None: no run is being set up (the announcement ends)."""
+    _EXPECTED[:] = [] if law_name is None else [(law_name, birth, serial)]
 
 
 def pending() -> set:

@@ -87,6 +87,7 @@ class Run:
         else:
             self.state = restored.contact
             self._continue(restored, saved.path)
+        ahead.expect(None)  # set up: a kernel compiled later in this process is not this run's start
 
     # -- set-up ---------------------------------------------------------------------------------
 
