@@ -65,9 +65,8 @@ def add_reference(ds, params, level="default", threads=None):
     disp = ds["displacement"].values
     control = ds["control"].values.astype(bool)
     sig = ds["stress"].values
-    for i in range(disp.shape[0]):
-        if np.count_nonzero(control[i]) > 1:
-            raise ValueError("the reference handles one stress-controlled component at a time")
+    if (control.sum(axis=1) > 1).any():
+        raise ValueError("the reference handles one stress-controlled component at a time")
     threads = numba.get_num_threads() if threads is None else threads
     with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
         steps = list(pool.map(lambda i: _reference_step(params, disp[i], control[i], sig[i], level),
@@ -85,9 +84,12 @@ def _reference_step(params, disp, control, sig, level):
     """(stress, displacement) of the quadrature at one step of :func:`add_reference`."""
     d = disp.copy()
     free = np.flatnonzero(control)
+    if free.size == 0 or sig[free[0]] == 0.0:
+        return reference.stress(params, d, level=level), d
+    k, target = int(free[0]), sig[free[0]]
     known = {}  # stress at each displacement integrated, by the value (sign of zero included) of d[k]
 
-    def stress_at(x, k):
+    def stress_at(x):
         key = (x, math.copysign(1.0, x))
         if key not in known:
             dd = d.copy()
@@ -95,24 +97,19 @@ def _reference_step(params, disp, control, sig, level):
             known[key] = reference.stress(params, dd, level=level)
         return known[key]
 
-    if free.size == 1 and sig[free[0]] != 0.0:
-        k = int(free[0])
-        target = sig[k]
+    def resid(x):
+        return stress_at(x)[k] - target
 
-        def resid(x):
-            return stress_at(x, k)[k] - target
-
-        # bracket around the Monte Carlo solution, widening until the sign changes
-        width = max(abs(d[k]) * 0.05, params.beta)
-        lo, hi = d[k] - width, d[k] + width
-        for _ in range(60):
-            if resid(lo) < 0.0 < resid(hi):
-                break
-            lo, hi = lo - width, hi + width
-            width *= 2.0
-        d[k] = optimize.brentq(resid, lo, hi, xtol=1e-15, rtol=1e-13)
-        return stress_at(float(d[k]), k).copy(), d
-    return reference.stress(params, d, level=level), d
+    # bracket around the Monte Carlo solution, widening until the sign changes
+    width = max(abs(d[k]) * 0.05, params.beta)
+    lo, hi = d[k] - width, d[k] + width
+    for _ in range(60):
+        if resid(lo) < 0.0 < resid(hi):
+            break
+        lo, hi = lo - width, hi + width
+        width *= 2.0
+    d[k] = optimize.brentq(resid, lo, hi, xtol=1e-15, rtol=1e-13)
+    return stress_at(float(d[k])).copy(), d
 
 
 def z_scores(ds):

@@ -31,9 +31,9 @@ def main(argv=None) -> int:
     law, policy = args[:2]
     serial = (args[2] if len(args) > 2 else "serial") == "serial"
     birth = policy == "birth"
-    p = presets.R1
-    names = kernel_names(laws.get(law), birth, serial)
-    if laws.get(law).history is not None:
+    p, lw = presets.R1, laws.get(law)
+    names = kernel_names(lw, birth, serial)
+    if lw.history is not None:
         pop = Population.from_arrays(p, [0.0, 0.1 * p.beta, 0.2 * p.beta], [p.R_m] * 3, [0.3, 0.6, 0.9],
                                      [0.0, 1.0, 2.0])
         state = ContactState(pop, law=law, policy=policy)

@@ -251,13 +251,15 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
             n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
             serial = fits_serial(n_active)
         if serial:
-            wait_for(kern["reduce_serial"])  # a first run: the helper may be compiling it (kernels.ahead)
-            kern["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e,
-                                  state.consts, beta, tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
+            reduce = kern["reduce_serial"]
+            wait_for(reduce)  # a first run: the helper may be compiling it (kernels.ahead)
+            reduce(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e, state.consts, beta,
+                   tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
             return evaluation_from(d, out)
         n_rows = chunks_of(n_active, CHUNK)
-        wait_for(kern["reduce_parallel"])
-        run_chunks(kern["reduce_parallel"], n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
+        reduce = kern["reduce_parallel"]
+        wait_for(reduce)
+        run_chunks(reduce, n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
                    k_e, state.consts, tb, tan_max, workspace.partial)
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
