@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
-__all__ = ["run_chunks", "chunks_of"]
+__all__ = ["run_chunks", "run_calls", "chunks_of"]
 
 _POOL: list = []
 _LOCK = threading.Lock()
@@ -43,14 +43,38 @@ def chunks_of(n: int, size: int) -> int:
 
 def run_chunks(kernel, n_chunks: int, *args) -> None:
     """``kernel(*args, lo, hi)`` over chunks 0 .. n_chunks, one contiguous range per thread, all at once."""
-    threads = min(numba.get_num_threads(), n_chunks)
+    run_calls((kernel, n_chunks, args))
+
+
+def run_calls(*calls) -> None:
+    """Several chunked kernels handed to the threads at once: each ``(kernel, n_chunks, args)`` as :func:`run_chunks`.
+
+    Each thread runs its range of every call, in the order given, so the calls must not read what
+    another writes.  One hand-off for all of them: a pool thread takes 70-100 us to pick up its
+    part, as long as a small kernel takes.  The extra chunk of an odd split goes to the last
+    thread in the first call, to the first in the second, and so on, so that the parts stay even.
+    """
+    threads = min(numba.get_num_threads(), max(n for _, n, _ in calls))
     if threads <= 1:
-        kernel(*args, 0, n_chunks)
+        for kernel, n_chunks, args in calls:
+            kernel(*args, 0, n_chunks)
         return
-    edges = [n_chunks * t // threads for t in range(threads + 1)]
-    others = [_pool().submit(kernel, *args, edges[t], edges[t + 1]) for t in range(1, threads)]
+    parts: list[list] = [[] for _ in range(threads)]
+    for c, (kernel, n_chunks, args) in enumerate(calls):
+        edges = [n_chunks * t // threads if c % 2 == 0 else n_chunks - n_chunks * (threads - t) // threads
+                 for t in range(threads + 1)]
+        for t in range(threads):
+            if edges[t] < edges[t + 1]:
+                parts[t].append((kernel, args, edges[t], edges[t + 1]))
+    others = [_pool().submit(_run_part, part) for part in parts[1:] if part]
     try:
-        kernel(*args, edges[0], edges[1])
+        _run_part(parts[0])
     finally:
         for f in others:
             f.result()
+
+
+def _run_part(part) -> None:
+    """One thread's ranges of the calls of :func:`run_calls`, in order."""
+    for kernel, args, lo, hi in part:
+        kernel(*args, lo, hi)

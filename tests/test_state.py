@@ -79,6 +79,30 @@ def test_commit_after_a_trial_there_finds_the_same_fresh_contacts_as_a_full_sear
     assert born > 0  # contacts were born along the way
 
 
+def test_the_search_for_fresh_contacts_gives_the_same_state_here_and_on_the_threads(monkeypatch):
+    """A commit searches the spans of its trial on the calling thread when they are short (SEARCH_HERE), else on
+    the threads: the same contacts are born, into the same slots, with the same sums."""
+    pop, start = loaded_history(n=20000)
+    states, results = [], []
+    for here in (0, 10**9):
+        monkeypatch.setattr(state_module, "SEARCH_HERE", here)
+        hist = ContactState(pop, "mdr", k=16)
+        hist.restore(start.state_arrays())
+        ws = Workspace(pop.n)
+        rng = np.random.default_rng(5)
+        for _ in range(6):
+            d = hist.delta_c + rng.normal([0.4, 0.3, 0.2], 0.3) * um
+            evaluate(pop, d, law="mdr", state=hist, workspace=ws)
+            results.append(hist.commit(d, workspace=ws))
+        states.append(hist.state_arrays())
+    for a, b in zip(results[:6], results[6:]):
+        assert (a.work, a.stored, a.dissipation) == (b.work, b.stored, b.dissipation)
+        assert np.array_equal(a.transitions, b.transitions)
+    assert sum(r.transitions[0, 1:].sum() for r in results[:6]) > 0  # contacts were born
+    for name, x in states[0].items():
+        assert np.array_equal(states[1][name], x), name
+
+
 @pytest.mark.parametrize("trial_um", [(14.3, 3.5, 2.5), (13, 5, 3.1), (15, 6, 3), (12, 1, 6)])
 def test_mdr_tangent_against_finite_differences(trial_um):
     pop, hist = loaded_history()

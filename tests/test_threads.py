@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from asperity_sim import Population, evaluate, presets
-from asperity_sim.threads import run_chunks
+from asperity_sim.threads import run_calls, run_chunks
 
 
 def _with_threads(k, f):
@@ -38,6 +38,30 @@ def test_every_chunk_goes_to_exactly_one_call_in_contiguous_ranges():
         assert covered == list(range(n_chunks))
         assert all(tag == "x" for tag, *_ in calls)
         assert len(calls) == max(1, min(numba.config.NUMBA_NUM_THREADS, n_chunks))
+
+
+def test_calls_handed_off_together_give_every_chunk_once_in_order_on_each_thread():
+    """run_calls: each call's chunks covered once; on each thread the calls run in the order given; an odd
+    split gives its extra chunk to the last thread in the first call and to the first in the second."""
+    calls, lock = [], threading.Lock()
+
+    def kernel(tag, lo, hi):
+        with lock:
+            calls.append((tag, lo, hi, threading.get_ident()))
+
+    threads = numba.config.NUMBA_NUM_THREADS
+    _with_threads(threads, lambda: run_calls((kernel, 7, ("a",)), (kernel, 5, ("b",)), (kernel, 0, ("c",))))
+    for tag, n in (("a", 7), ("b", 5)):
+        covered = sorted(c for t, lo, hi, _ in calls if t == tag for c in range(lo, hi))
+        assert covered == list(range(n))
+    assert not [c for c in calls if c[0] == "c" and c[2] > c[1]]
+    by_thread = {}
+    for tag, lo, hi, ident in calls:
+        by_thread.setdefault(ident, []).append(tag)
+    assert all(tags == sorted(tags) for tags in by_thread.values())  # a before b before c on every thread
+    if threads == 2:
+        ranges = {(t, lo, hi) for t, lo, hi, _ in calls}
+        assert {("a", 0, 3), ("a", 3, 7), ("b", 0, 3), ("b", 3, 5)} <= ranges
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")

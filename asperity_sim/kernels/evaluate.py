@@ -30,7 +30,7 @@ from ..checks import check_choice, check_delta
 from ..geometry import POLICIES
 from ..memory import reserve
 from ..sampling.population import Population
-from ..threads import chunks_of, run_chunks
+from ..threads import chunks_of, run_calls, run_chunks
 from .layout import (
     CHUNK,
     EMPTY,
@@ -269,17 +269,19 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         workspace.fresh_key = None
         index = workspace.fresh_index(pop, d, state.delta_c, n_active)
         listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
-        run_chunks(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box), state.flag, n_active, pop.r,
-                   pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c, state.reference, r_o, k_e, state.consts,
-                   state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
-                   workspace.n_box, workspace.tan_box)
+        calls = [(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box),
+                  (state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
+                   state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans, index,
+                   listed, n_listed, workspace.box, workspace.n_box, workspace.tan_box))]
+        if n_slot:
+            calls.append((kern["slot_pass"], n_slot,
+                          (state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
+                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
+                           workspace.slot_rows(state.n_slots))))
+        run_calls(*calls)  # one hand-off for both passes: they write different rows
         workspace.trials_by_index[index] += 1
         if index == 1:
             workspace.box_pop = pop
-        if n_slot:
-            run_chunks(kern["slot_pass"], n_slot, state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u,
-                       pop.cos_phi, pop.sin_phi, d, state.delta_c, r_o, k_e, state.consts, state.arrays, tb,
-                       partial[n_pop:], workspace.slot_rows(state.n_slots))
         workspace.fresh_key = workspace.trial_key(d, state)
         n_rows = n_pop + n_slot
     finish(workspace.partial, n_rows, pop.n, scale, out)

@@ -40,6 +40,11 @@ from .reach import bounds
 from .specialise import kernels
 
 
+SEARCH_HERE = 10_000
+"""Asperities in the spans of the last trial (about 0.1 ms of :func:`find_fresh`, as long as handing it to the
+threads takes) below which a commit searches for its fresh contacts on the calling thread."""
+
+
 @dataclass
 class CommitResult:
     """Energies [J per unit nominal area: J m-2] and bookkeeping of one commit (history laws)."""
@@ -160,8 +165,12 @@ class ContactState:
                        self.arrays, tb, self.n_stored, self._partial, geo)
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
-        run_chunks(find_fresh, n_pop_chunks, self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta,
-                   p.r_o, p.k_e, tan_max, counts, spans)
+        search = (self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e, tan_max,
+                  counts, spans)
+        if spans.shape[0] and int((spans[:n_pop_chunks, 1] - spans[:n_pop_chunks, 0]).sum()) < SEARCH_HERE:
+            find_fresh(*search, 0, n_pop_chunks)  # the trial said where: less work than a hand-off to the threads
+        else:
+            run_chunks(find_fresh, n_pop_chunks, *search)
         n_new = int(counts.sum())
         if n_new:
             self._reserve(self.n_slots + n_new)
