@@ -23,8 +23,15 @@ process, because absolute times drift on a shared machine):
    has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
    >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
 
+``--against COMMIT`` measures only item 1, for the code of COMMIT (a detached worktree in a
+temporary folder) and for this checkout, each in fresh processes, alternating ``--alternations``
+times: a change's effect read through the machine's drift (the medians of the processes are
+compared).
+
 Run:   python benchmarks/whole_run.py [--rounds 3] [--memory-sizes 1000000] [--thread-n 1000000]
-Writes outputs/whole_run.json and prints a table.  About 3 minutes on 2 cores (2026-11-27).
+       python benchmarks/whole_run.py --against COMMIT [--alternations 3]
+Writes outputs/whole_run.json (``--against``: outputs/whole_run_against.json) and prints a table.
+About 3 minutes on 2 cores (2026-11-27); ``--against`` about 5 minutes.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ import json
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -209,14 +217,80 @@ def threads(n, rounds):
     return out
 
 
+AGAINST = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import whole_run
+import asperity_sim
+from asperity_sim import Population, presets
+print("CODE " + asperity_sim.__file__, flush=True)
+warm = Population.sample(presets.R1, 2000, seed=0)
+for law in ("paper", "mdr"):
+    whole_run.run_time(warm, whole_run.bench_path(), law)
+print("JSON " + json.dumps(whole_run.whole_runs([int(s) for s in sys.argv[2].split(",")], int(sys.argv[3]))))
+"""
+
+
+def against(commit, sizes, rounds, alternations):
+    """Item 1 for the code of ``commit`` and for this checkout, fresh processes in turn; medians over them."""
+    root = Path(__file__).resolve().parent.parent
+    runs = {"old": [], "new": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        old = Path(tmp) / "old"
+        subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", str(old), commit], check=True,
+                       capture_output=True)
+        try:
+            for i in range(alternations):
+                for label, code in (("old", old), ("new", root)):
+                    p = subprocess.run([sys.executable, "-c", AGAINST, str(code / "benchmarks"), sizes, str(rounds)],
+                                       capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(code)),
+                                       cwd=str(code))  # "" heads sys.path: the working folder's package would win
+                    line = [x for x in p.stdout.splitlines() if x.startswith("JSON ")]
+                    if p.returncode or not line:
+                        raise RuntimeError(f"{label} code ({code}) failed:\n{p.stderr[-2000:]}")
+                    runs[label].append(json.loads(line[0][5:]))
+                    print(f"  round {i + 1}, {label} code done ({p.stdout.split('CODE ')[1].split()[0]})", flush=True)
+        finally:
+            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(old)], capture_output=True)
+    out = {"commit": commit, "runs": runs}
+    for name in PATHS:
+        for n in sizes.split(","):
+            row = {}
+            for label in runs:
+                for law in ("paper", "mdr"):
+                    row[f"{label}_{law}_s"] = float(np.median([r[name][n][f"{law}_s"] for r in runs[label]]))
+                row[f"{label}_mdr_over_paper"] = row[f"{label}_mdr_s"] / row[f"{label}_paper_s"]
+            out[f"{name} {n}"] = row
+            print(f"  {name:9s} n = {n:>7s}: " + ", ".join(
+                f"{label} paper {row[f'{label}_paper_s']:.3f} s, mdr {row[f'{label}_mdr_s']:.3f} s "
+                f"(mdr / paper {row[f'{label}_mdr_over_paper']:.2f})" for label in runs))
+        ordered = sorted(sizes.split(","), key=int)
+        lo, hi = ordered[0], ordered[-1]
+        for label in runs:
+            out[f"{name} scaling {label}"] = {law: out[f"{name} {hi}"][f"{label}_{law}_s"]
+                                              / out[f"{name} {lo}"][f"{label}_{law}_s"] for law in ("paper", "mdr")}
+            print(f"  {name:9s} time per increment at n = {hi} over n = {lo}, {label} code: "
+                  + ", ".join(f"{law} {v:.1f}" for law, v in out[f"{name} scaling {label}"].items()))
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--sizes", default="50000,500000")
     ap.add_argument("--memory-sizes", default="1000000")
     ap.add_argument("--thread-n", type=int, default=1_000_000)
+    ap.add_argument("--against", metavar="COMMIT", help="compare the whole runs with the code of COMMIT")
+    ap.add_argument("--alternations", type=int, default=3)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
+    if args.against:
+        out = against(args.against, args.sizes, args.rounds, args.alternations)
+        out.update(wall_s=time.perf_counter() - t0, load=os.getloadavg()[0])
+        OUT.mkdir(exist_ok=True)
+        (OUT / "whole_run_against.json").write_text(json.dumps(out, indent=1))
+        print(f"wrote {OUT / 'whole_run_against.json'} ({out['wall_s']:.0f} s)")
+        return
     out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
                        "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "k": K}
     warm = Population.sample(presets.R1, 2000, seed=0)
