@@ -10,8 +10,8 @@ committed state (:mod:`asperity_sim.kernels.state`), which it only reads.
 Which asperities are visited.  The population is sorted by height: only the first
 ``n_active`` can touch (:func:`~asperity_sim.kernels.reach.bounds`).  A path-independent law
 sums them in one parallel pass, or on the calling thread when they fit
-``SERIAL_CHUNKS`` chunks.  A history law makes two passes: the committed contacts, from their
-slots, and the contacts that are new in this trial; the second tests only the asperities that
+``SERIAL_CHUNKS`` chunks.  A history law makes two passes, handed to the threads together: the
+committed contacts, from their slots, and the contacts new in this trial; the second tests only those
 the workspace lists as able to touch in a box of displacements around the path (the same
 asperities in the same order as a full scan, so the same bits).  No fastmath anywhere: vector
 and scalar code give the same bits, and a result is the same whether its kernels were compiled
@@ -244,6 +244,7 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
     out = np.empty(N_OUT)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     kern = kernels(law, birth=tb.size > 0)
+    pop_arrays = (pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi)
     if law.path_independent:
         # a population that fits the serial kernel: it finds its own bounds
         serial = fits_serial(pop.n)
@@ -259,8 +260,7 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         n_rows = chunks_of(n_active, CHUNK)
         reduce = kern["reduce_parallel"]
         wait_for(reduce)
-        run_chunks(reduce, n_rows, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, d, r_o,
-                   k_e, state.consts, tb, tan_max, workspace.partial)
+        run_chunks(reduce, n_rows, *pop_arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial)
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
         n_pop = chunks_of(n_active, CHUNK)
@@ -270,15 +270,14 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         index = workspace.fresh_index(pop, d, state.delta_c, n_active)
         listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
         calls = [(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box),
-                  (state.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, state.delta_c,
-                   state.reference, r_o, k_e, state.consts, state.arrays, tan_max, partial, workspace.spans, index,
-                   listed, n_listed, workspace.box, workspace.n_box, workspace.tan_box))]
-        if n_slot:
-            calls.append((kern["slot_pass"], n_slot,
-                          (state.asp, state.n_slots, state.dn_c, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d,
-                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
-                           workspace.slot_rows(state.n_slots))))
-        run_calls(*calls)  # one hand-off for both passes: they write different rows
+                  (state.flag, n_active, *pop_arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
+                   state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
+                   workspace.n_box, workspace.tan_box))]
+        if n_slot:  # one hand-off for both passes (they write different rows)
+            calls.append((kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop_arrays, d,
+                          state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
+                          workspace.slot_rows(state.n_slots))))
+        run_calls(*calls)
         workspace.trials_by_index[index] += 1
         if index == 1:
             workspace.box_pop = pop
