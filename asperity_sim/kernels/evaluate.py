@@ -7,15 +7,14 @@ exact tangent T_ik = d sigma_i / d Delta_k, for any registered law.  It picks th
 (:mod:`asperity_sim.kernels.specialise`) and passes them the population's arrays and the
 committed state (:mod:`asperity_sim.kernels.state`), which it only reads.
 
-Which asperities are visited.  The population is sorted by height: only the first
-``n_active`` can touch (:func:`~asperity_sim.kernels.reach.bounds`).  A path-independent law
-sums them in one parallel pass, or on the calling thread when they fit
-``SERIAL_CHUNKS`` chunks.  A history law makes two passes, handed to the threads together: the
-committed contacts, from their slots, and the contacts new in this trial; the second tests only those
-the workspace lists as able to touch in a box of displacements around the path (the same
-asperities in the same order as a full scan, so the same bits).  No fastmath anywhere: vector
-and scalar code give the same bits, and a result is the same whether its kernels were compiled
-or loaded from cache.
+Which asperities are visited.  The population is sorted by height: only the first ``n_active``
+can touch (:func:`~asperity_sim.kernels.reach.bounds`).  A path-independent law sums them in one
+parallel pass, or on the calling thread when they fit ``SERIAL_CHUNKS`` chunks.  A history law
+makes two passes, handed to the threads together: the committed contacts, from their slots, and
+the contacts new in this trial; the second tests only those the workspace lists as able to touch
+in a box of displacements around the path (the same asperities in the same order as a full
+scan, so the same bits).  No fastmath anywhere: vector and scalar code give the same bits, and a
+result is the same whether its kernels were compiled or loaded from cache.
 """
 
 from __future__ import annotations
