@@ -147,3 +147,35 @@ def copy_into(dest, src):
     """
     for i in range(src.shape[0]):
         dest[i] = src[i]
+
+
+def _without_owner(context, builder, ty, value):
+    """``value`` of type ``ty`` with the owner (meminfo, parent) of every array in it set to null."""
+    if isinstance(ty, numba.types.Array):
+        ary = context.make_array(ty)(context, builder, value)
+        ary.meminfo = cgutils.get_null_value(ary.meminfo.type)
+        ary.parent = cgutils.get_null_value(ary.parent.type)
+        return ary._getvalue()
+    if isinstance(ty, numba.types.BaseTuple):
+        for k, t in enumerate(ty):
+            value = builder.insert_value(value, _without_owner(context, builder, t, builder.extract_value(value, k)), k)
+    return value
+
+
+@numba.extending.intrinsic
+def borrowed(typingctx, a):
+    """``a`` (an array, or a tuple holding arrays) as views without a reference count: the same data, no owner.
+
+    numba counts the references to an array with atomic increments and decrements, and inserts
+    a pair wherever a loop body hands the array to an inlined function with branches; two
+    threads doing so on the same array fight over one cache line, at every contact.  A view
+    without an owner (a null ``meminfo``) makes each of those a test that LLVM folds away.  Only
+    for arrays the caller keeps alive while the view is in use (a kernel's arguments).
+    """
+    if not isinstance(a, (numba.types.Array, numba.types.BaseTuple)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return _without_owner(context, builder, signature.args[0], args[0])
+
+    return a(a), codegen

@@ -17,7 +17,7 @@ import numpy as np
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
 from ..threads import chunks_of, run_chunks
-from ..vectormath import copy_into
+from ..vectormath import borrowed, copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
     BIRTH,
@@ -83,6 +83,8 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     read from ``slot_geo`` when a trial at ``delta`` on this committed state left it there (not
     empty; the same bits).
     """
+    asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo = borrowed(
+        (asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
@@ -186,6 +188,8 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
                  arrays, n_store, partial, kk_lo, kk_hi):
     """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order), chunks
     kk_lo .. kk_hi of them."""
+    new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial = borrowed(
+        (new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, _ = closure_and_slope(r_o, d1)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
-from ..vectormath import copy_into
+from ..vectormath import borrowed, copy_into
 from .contact import (
     accumulate,
     add_values,
@@ -81,6 +81,8 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     geometry the law needs (delta_n, the increment, R) is left in ``slot_geo`` (N_SLOT_GEO, >=
     n_slots), for a commit at this displacement (:func:`commit_slots`).
     """
+    asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo = borrowed(
+        (asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
@@ -164,6 +166,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     touch in the same order, so the sums have the same bits whatever the index.  Chunks kk_lo .. kk_hi of
     the strided order over :func:`scan_chunks`.
     """
+    flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed = borrowed(
+        (flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...jit import kernel
-from ...vectormath import prefetch
+from ...vectormath import borrowed, prefetch
 from .commit import committed_commit_scaled, mdr_commit
 from .springs import FAST, LANES, state_code
 from .trial import committed_springs_scaled, contact_scales
@@ -56,10 +56,12 @@ def block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam):
 
 
 @kernel(inline="always")
-def prefetch_ahead(w_all, sc, b0, i, m):
-    """Prefetch the springs in contact, and those entering, of the contact AHEAD rows after row i of a block."""
+def prefetch_ahead(w_all, n_in, n_c, b0, i, m):
+    """Prefetch the springs in contact (n_in), and those entering (n_c), of the contact AHEAD rows after row i of a
+    block (the table's values as scalars: an array handed to an inlined function costs two atomic reference
+    counts per contact)."""
     if i + AHEAD < m:
-        prefetch_springs(w_all, b0 + i + AHEAD, max(int(sc[S_NIN, i + AHEAD]), int(sc[S_NC, i + AHEAD])) + LANES)
+        prefetch_springs(w_all, b0 + i + AHEAD, max(int(n_in), int(n_c)) + LANES)
 
 
 @kernel(error_model="numpy", fastmath=FAST)
@@ -71,10 +73,11 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     contact by contact.  The same values as :func:`mdr_trial` contact by contact.
     """
     E_star, lam, mu, k, dn_floor = consts
-    w_all, h_all = arrays
+    w_all, h_all = borrowed(arrays)  # no reference counts in the loops (asperity_sim.vectormath.borrowed)
     sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
-        prefetch_ahead(w_all, sc, b0, i, m)
+        ahead = min(i + AHEAD, m - 1)
+        prefetch_ahead(w_all, sc[S_NIN, ahead], sc[S_NC, ahead], b0, i, m)
         if dn[i] <= 0.0:
             for a in range(13):
                 out[a, i] = 0.0
@@ -100,10 +103,11 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     would compile the whole commit twice.
     """
     E_star, lam, mu, k, dn_floor = consts
-    w_all, h_all = arrays
+    w_all, h_all = borrowed(arrays)  # no reference counts in the loops (asperity_sim.vectormath.borrowed)
     sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
-        prefetch_ahead(w_all, sc, b0, i, m)
+        ahead = min(i + AHEAD, m - 1)
+        prefetch_ahead(w_all, sc[S_NIN, ahead], sc[S_NC, ahead], b0, i, m)
         if not live[i]:
             continue
         sl = b0 + i
