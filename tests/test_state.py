@@ -183,6 +183,32 @@ def test_slots_grow_the_same_where_reserving_them_is_refused(monkeypatch):
         assert np.array_equal(a[name], b[name]), name
 
 
+def test_reserved_slots_hold_a_turnover_of_nearly_every_asperity():
+    """Contacts lost and born in one increment reuse the freed slots first, so the reserved slots (one per
+    asperity) never need to grow, even when the slots in use plus the contacts born exceed the asperities (a
+    commit once tried to grow the reserved arrays there, which cannot be done, and stopped the run)."""
+    c = R1.R_m / R1.k_e - R1.r_o  # theta_m(c, R_m) = pi/2: nearly every asperity in contact, turning over in shear
+    pop = Population.sample(R1, 2000, seed=1)
+    state = ContactState(pop, "mdr", "follow", k=16)
+    steps = ([np.array([c * f, 0.0, 0.0]) for f in (0.5, 1.0)] + [np.array([c, c * f / 6, 0.0]) for f in (1, 2, 3)]
+             + [np.array([c, c * (0.5 - f / 6), 0.0]) for f in range(1, 7)])
+    turned = False
+    for d in steps:
+        ev = evaluate(pop, d, law="mdr", state=state)
+        slots, before = state.n_slots, state.flag != 0
+        state.commit(d, ev.n_active)
+        born = int(np.count_nonzero((state.flag != 0) & ~before))
+        turned |= slots + born > pop.n
+        assert state.asp.size == pop.n and state.n_contacts <= state.n_slots <= pop.n
+    assert turned  # the turnover that needs the freed slots happened
+    D = paths.DISPLACEMENT
+    path = paths.LoadPath((paths.Stage((D, D, D), (c, 0.0, 0.0), 2, name="close"),
+                           paths.Stage((D, D, D), (c, 0.5 * c, 0.0), 3, name="+A"),
+                           paths.Stage((D, D, D), (c, -0.5 * c, 0.0), 6, name="-A")), name="turnover")
+    ds = simulate(R1, path, population=pop, law="mdr", k=16)
+    assert ds.sizes["step"] == 12 and 0 < ds.n_contact.values.max() <= pop.n
+
+
 def test_contact_loss_erases_memory():
     pop, hist = loaded_history()
     d = np.array([-1.0, 0.0, 0.0]) * um  # opening: every contact lost

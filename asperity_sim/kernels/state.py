@@ -173,7 +173,10 @@ class ContactState:
             run_chunks(find_fresh, n_pop_chunks, *search)
         n_new = int(counts.sum())
         if n_new:
-            self._reserve(self.n_slots + n_new)
+            need = self.n_slots + n_new
+            if need > self.asp.size:  # free slots are taken first: only the new contacts beyond them need room
+                need = self.n_slots + max(0, n_new - (self.n_slots - self.n_contacts))
+            self._reserve(need)
             new_slots = np.empty(n_new, dtype=np.int64)
             self.n_slots = int(assign_slots(self.flag, counts, self.asp, self.n_slots, new_slots))
             n_new_chunks = chunks_of(n_new, CHUNK)
@@ -191,7 +194,8 @@ class ContactState:
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
 
     def _reserve(self, needed):
-        """Room for ``needed`` slots: grows the arrays of 1024 slots made when reserving was refused."""
+        """Room for ``needed`` slots: grows the arrays of 1024 slots made when reserving was refused (reserved
+        arrays hold a slot for every asperity, as many as there can be contacts, and never grow)."""
         cap = self.asp.size
         if needed <= cap:
             return
