@@ -1,10 +1,11 @@
-"""Branch-free arithmetic for kernels that LLVM vectorises, and a software prefetch.
+"""Branch-free arithmetic for kernels that LLVM vectorises, a software prefetch, and borrowed arrays.
 
 Owns the numerics below the physics: :func:`fsqrt` (the LLVM square root, which has no
 side effect, so loops with it vectorise), the libm-free series trigonometry
 (:func:`sin_cos_quarter`, :func:`acos_unit`, evaluated by Estrin's scheme in
-:func:`estrin16`) and :func:`prefetch` (``llvm.prefetch``) for the kernels that walk the spring
-store contact by contact.  No fastmath: vector and scalar code give the same bits.
+:func:`estrin16`), :func:`prefetch` (``llvm.prefetch``) for the kernels that walk the spring
+store contact by contact, and :func:`borrowed` (arrays without a reference count for their
+loops).  No fastmath: vector and scalar code give the same bits.
 
 Prefetch: the hardware prefetchers follow a stream, but a loop over committed contacts visits a
 few cache lines per contact and then does tens of nanoseconds of arithmetic; when the store does
