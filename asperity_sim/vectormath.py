@@ -170,8 +170,9 @@ def borrowed(typingctx, a):
     numba counts the references to an array with atomic increments and decrements, and inserts
     a pair wherever a loop body hands the array to an inlined function with branches; two
     threads doing so on the same array fight over one cache line, at every contact.  A view
-    without an owner (a null ``meminfo``) makes each of those a test that LLVM folds away.  Only
-    for arrays the caller keeps alive while the view is in use (a kernel's arguments).
+    without an owner (a null ``meminfo``) turns each of those into a test of a null pointer, with
+    no atomic.  Only for arrays the caller keeps alive while the view is in use (a kernel's
+    arguments).
     """
     if not isinstance(a, (numba.types.Array, numba.types.BaseTuple)):
         return None
