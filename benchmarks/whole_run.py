@@ -23,12 +23,15 @@ process, because absolute times drift on a shared machine):
    has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
    >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
 
+``--one-thread`` adds item 1 on one thread: the increment scaling without the hand-offs to the
+other threads (what the fixed per-increment work of the Newton loop costs alone).
+
 ``--against COMMIT`` measures only item 1, for the code of COMMIT (a detached worktree in a
 temporary folder) and for this checkout, each in fresh processes, alternating ``--alternations``
 times: a change's effect read through the machine's drift (the medians of the processes are
 compared).
 
-Run:   python benchmarks/whole_run.py [--rounds 3] [--memory-sizes 1000000] [--thread-n 1000000]
+Run:   python benchmarks/whole_run.py [--rounds 3] [--memory-sizes 1000000] [--thread-n 1000000] [--one-thread]
        python benchmarks/whole_run.py --against COMMIT [--alternations 3]
 Writes outputs/whole_run.json (``--against``: outputs/whole_run_against.json) and prints a table.
 About 3 minutes on 2 cores (2026-11-27); ``--against`` about 5 minutes.
@@ -91,7 +94,7 @@ def side_by_side(pop, path, rounds):
     return {law: float(np.median(t)) for law, t in times.items()}, n_inc, times
 
 
-def whole_runs(sizes, rounds):
+def whole_runs(sizes, rounds, label=""):
     out = {}
     for name, make in PATHS.items():
         path = make()
@@ -101,14 +104,24 @@ def whole_runs(sizes, rounds):
             med, n_inc, every = side_by_side(pop, path, rounds)
             res[str(n)] = dict(paper_s=med["paper"], mdr_s=med["mdr"], mdr_over_paper=med["mdr"] / med["paper"],
                                increments=n_inc, rounds=every)
-            print(f"  {name:9s} n = {n:>7d}: paper {med['paper']:.3f} s, mdr {med['mdr']:.3f} s "
+            print(f"  {label}{name:9s} n = {n:>7d}: paper {med['paper']:.3f} s, mdr {med['mdr']:.3f} s "
                   f"-> mdr / paper {med['mdr'] / med['paper']:.2f} (target <= 5)", flush=True)
         lo, hi = str(min(sizes)), str(max(sizes))
         res["increment_scaling"] = {law: res[hi][f"{law}_s"] / res[lo][f"{law}_s"] for law in ("paper", "mdr")}
-        print(f"  {name:9s} time per increment at n = {hi} over n = {lo}: "
+        print(f"  {label}{name:9s} time per increment at n = {hi} over n = {lo}: "
               + ", ".join(f"{law} {v:.1f}" for law, v in res["increment_scaling"].items()) + " (target >= 8)")
         out[name] = res
     return out
+
+
+def one_thread(sizes, rounds):
+    """Item 1 on one thread: the increment scaling without hand-offs to other threads (``--one-thread``)."""
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return whole_runs(sizes, rounds, label="1 thread: ")
+    finally:
+        numba.set_num_threads(threads)
 
 
 MEMORY = r"""
@@ -282,6 +295,8 @@ def main(argv=None):
     ap.add_argument("--thread-n", type=int, default=1_000_000)
     ap.add_argument("--against", metavar="COMMIT", help="compare the whole runs with the code of COMMIT")
     ap.add_argument("--alternations", type=int, default=3)
+    ap.add_argument("--one-thread", action="store_true",
+                    help="also item 1 on one thread (the increment scaling without hand-offs)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.against:
@@ -298,6 +313,8 @@ def main(argv=None):
         run_time(warm, bench_path(), law)
     print("whole runs (from the call to the return):")
     out["whole_run"] = whole_runs([int(s) for s in args.sizes.split(",")], args.rounds)
+    if args.one_thread:
+        out["whole_run_one_thread"] = one_thread([int(s) for s in args.sizes.split(",")], args.rounds)
     print("peak memory (fresh processes, sampling included):")
     out["memory"] = memory([int(s) for s in args.memory_sizes.split(",") if s])
     print("threads:")

@@ -95,7 +95,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_3a6b298.json", "cold_start_reference.json", "whole_run_against_5a9c208.json",
            "same_numbers_handoff.md", "same_numbers_handoff.json", "cold_start_8b35572.json",
            "whole_run_against_f609918.json", "same_numbers_borrowed.md", "same_numbers_borrowed.json",
-           "whole_run_1b758b9.json", "cold_start_1b758b9.json", "cold_start_against_f609918.json")
+           "whole_run_1b758b9.json", "cold_start_1b758b9.json", "cold_start_against_f609918.json",
+           "whole_run_one_thread.json")
 
 
 def script_path(name: str) -> Path:
