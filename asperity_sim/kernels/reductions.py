@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
-from ..vectormath import copy_into
+from ..vectormath import borrowed, copy_into
 from .contact import (
     accumulate,
     add_values,
@@ -156,6 +156,8 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
     :func:`chunk_stride`, so both threads get low (in contact, costly) and high (cheap) heights;
     rows are overwritten.
     """
+    r, R, u, cos_phi, sin_phi, theta_birth, partial = borrowed(
+        (r, R, u, cos_phi, sin_phi, theta_birth, partial))  # no reference counts (vectormath.borrowed)
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, dc = closure_and_slope(r_o, d1)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
@@ -176,6 +178,8 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
     displacement-controlled stage of a path-independent law are independent, so a small
     population need not pay a round trip through Python for each of them.
     """
+    r, R, u, cos_phi, sin_phi, theta_birth, partial = borrowed(
+        (r, R, u, cos_phi, sin_phi, theta_birth, partial))  # no reference counts (vectormath.borrowed)
     for i in range(deltas.shape[0]):
         d1, d2, d3 = deltas[i, 0], deltas[i, 1], deltas[i, 2]
         n_active, tan_max = bounds(r, R_min, r_o, k_e, beta, deltas[i], theta_birth)
