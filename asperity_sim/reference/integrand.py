@@ -15,6 +15,7 @@ import numpy as np
 from ..geometry import HALF_PI, theta_m_and_slope
 from ..jit import kernel
 from ..laws.paper import paper_local
+from ..vectormath import borrowed
 
 # --------------------------------------------------------------------------------------
 # numba kernels
@@ -223,6 +224,8 @@ def stress_kernel(d1, S, c_psi, s_psi, mode, closure, k_e, E_star, lam, mu, alph
     (integrand even in phi': c = d = 0) uses [0, pi] only, mode 2 adds phi' -> -phi'.
     ``out`` (3,).
     """
+    R_x, R_w, tu, wu, tp, wp, tj, wj, tg, wg = borrowed(
+        (R_x, R_w, tu, wu, tp, wp, tj, wj, tg, wg))  # shared by threads: no reference counts (vectormath.borrowed)
     brk = np.empty(8)
     pb = np.empty(8)
     upts = np.empty(3)
