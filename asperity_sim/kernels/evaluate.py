@@ -243,7 +243,6 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
     out = np.empty(N_OUT)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     kern = kernels(law, birth=tb.size > 0)
-    pop_arrays = (pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi)
     if law.path_independent:
         # a population that fits the serial kernel: it finds its own bounds
         serial = fits_serial(pop.n)
@@ -253,13 +252,13 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         if serial:
             reduce = kern["reduce_serial"]
             wait_for(reduce)  # a first run: the helper may be compiling it (kernels.ahead)
-            reduce(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, _row(d), r_o, k_e, state.consts, beta,
-                   tb, pop.n, scale, workspace.partial, out.reshape(1, N_OUT))
+            reduce(*pop.arrays, pop.R_min, _row(d), r_o, k_e, state.consts, beta, tb, pop.n, scale, workspace.partial,
+                   out.reshape(1, N_OUT))
             return evaluation_from(d, out)
         n_rows = chunks_of(n_active, CHUNK)
         reduce = kern["reduce_parallel"]
         wait_for(reduce)
-        run_chunks(reduce, n_rows, *pop_arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial)
+        run_chunks(reduce, n_rows, *pop.arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial)
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
         n_pop = chunks_of(n_active, CHUNK)
@@ -269,11 +268,11 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         index = workspace.fresh_index(pop, d, state.delta_c, n_active)
         listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
         calls = [(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box),
-                  (state.flag, n_active, *pop_arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
+                  (state.flag, n_active, *pop.arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
                    state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
                    workspace.n_box, workspace.tan_box))]
         if n_slot:  # one hand-off for both passes (they write different rows)
-            calls.append((kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop_arrays, d,
+            calls.append((kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop.arrays, d,
                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
                           workspace.slot_rows(state.n_slots))))
         run_calls(*calls)
@@ -362,8 +361,8 @@ def evaluate_steps(pop, deltas, workspace, law="paper") -> Steps:
     lw = laws.get(law)
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     out = np.empty((deltas.shape[0], N_OUT))
-    kernels(lw)["reduce_serial"](pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, pop.R_min, deltas, r_o, k_e,
-                                 lw.constants(pop.params, lw.options()), beta, EMPTY, pop.n, scale, workspace.partial, out)
+    kernels(lw)["reduce_serial"](*pop.arrays, pop.R_min, deltas, r_o, k_e, lw.constants(pop.params, lw.options()),
+                                 beta, EMPTY, pop.n, scale, workspace.partial, out)
     return Steps(deltas, out)
 
 
@@ -394,7 +393,6 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
     tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else EMPTY
     out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
            "state": np.empty(pop.n, dtype=np.int8)}
-    run_chunks(kernels(lw, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), pop.r, pop.R, pop.u,
-               pop.cos_phi, pop.sin_phi, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
+    run_chunks(kernels(lw, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), *pop.arrays, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
                out["delta_n"], out["theta"], out["force"], out["state"])
     return out

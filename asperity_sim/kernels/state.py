@@ -143,8 +143,7 @@ class ContactState:
         if self.theta_birth is not None:
             if n_active is None:
                 n_active = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, tb)[0]
-            birth_angles(pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, n_active, delta, p.r_o, p.k_e,
-                         self.theta_birth)
+            birth_angles(*pop.arrays, n_active, delta, p.r_o, p.k_e, self.theta_birth)
         self.delta_c = delta.copy()
         return result
 
@@ -161,12 +160,11 @@ class ContactState:
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
             run_chunks(kern["commit_slots"], n_slot_chunks, self.asp, self.n_slots, self.dn_c, self.code, self.flag,
-                       pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, p.r_o, p.k_e, self.consts,
-                       self.arrays, tb, self.n_stored, self._partial, geo)
+                       *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
+                       self._partial, geo)
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
-        search = (self.flag, n_active, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, delta, p.r_o, p.k_e, tan_max,
-                  counts, spans)
+        search = (self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max, counts, spans)
         if spans.shape[0] and int((spans[:n_pop_chunks, 1] - spans[:n_pop_chunks, 0]).sum()) < SEARCH_HERE:
             find_fresh(*search, 0, n_pop_chunks)  # the trial said where: less work than a hand-off to the threads
         else:
@@ -183,9 +181,9 @@ class ContactState:
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])
-            run_chunks(kern["commit_fresh"], n_new_chunks, new_slots, self.asp, self.dn_c, self.code, pop.r, pop.R,
-                       pop.u, pop.cos_phi, pop.sin_phi, delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts,
-                       self.arrays, self.n_stored, self._partial)
+            run_chunks(kern["commit_fresh"], n_new_chunks, new_slots, self.asp, self.dn_c, self.code, *pop.arrays,
+                       delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts, self.arrays, self.n_stored,
+                       self._partial)
             sums += self._partial[:n_new_chunks].sum(axis=0)
         scale = p.N * pop.weight
         transitions = np.rint(sums[C_TR:C_TR + 16]).astype(np.int64).reshape(4, 4)
@@ -214,16 +212,15 @@ class ContactState:
         tb = EMPTY if self.theta_birth is None else self.theta_birth
         d = np.asarray(delta, dtype=float)
         if not self.has_history:
-            run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), pop.r, pop.R,
-                       pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts, tb, out["delta_n"],
-                       out["theta"], out["force"], out["state"])
+            run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), *pop.arrays,
+                       d, p.r_o, p.k_e, self.consts, tb, out["delta_n"], out["theta"], out["force"], out["state"])
             return out
         slot_of = np.full(pop.n, -1, dtype=np.int64)
         live = np.flatnonzero(self.asp[:self.n_slots] >= 0)
         slot_of[self.asp[live]] = live
         run_chunks(kernels(self.law, birth=tb.size > 0)["snapshot_slots"], chunks_of(pop.n, CHUNK), slot_of,
-                   self.dn_c, self.code, pop.r, pop.R, pop.u, pop.cos_phi, pop.sin_phi, d, p.r_o, p.k_e, self.consts,
-                   self.arrays, tb, out["delta_n"], out["theta"], out["force"], out["state"])
+                   self.dn_c, self.code, *pop.arrays, d, p.r_o, p.k_e, self.consts, self.arrays, tb, out["delta_n"],
+                   out["theta"], out["force"], out["state"])
         return out
 
     def state_arrays(self) -> dict:

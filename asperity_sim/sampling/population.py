@@ -266,8 +266,13 @@ class Population:
         return np.where(phi >= 2.0 * math.pi, 0.0, phi)  # a tiny negative angle rounds up to 2 pi
 
     @property
+    def arrays(self) -> tuple:
+        """(r, R, u, cos_phi, sin_phi): the per-asperity arrays, in the order every kernel takes them."""
+        return self.r, self.R, self.u, self.cos_phi, self.sin_phi
+
+    @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.r, self.R, self.u, self.cos_phi, self.sin_phi))
+        return sum(a.nbytes for a in self.arrays)
 
     @cached_property
     def R_min(self) -> float:

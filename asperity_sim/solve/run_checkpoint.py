@@ -305,7 +305,7 @@ def _population(params, meta, arrays):
     except KeyError as err:
         raise CheckpointError(f"checkpoint {getattr(arrays, 'path', '<unknown>')!r} holds no population array "
                               f"{err}") from err
-    if pop.n != meta["config"]["n"] or any(a.shape != (pop.n,) for a in (pop.R, pop.u, pop.cos_phi, pop.sin_phi)):
+    if pop.n != meta["config"]["n"] or any(a.shape != (pop.n,) for a in pop.arrays):
         raise CheckpointError(f"checkpoint {getattr(arrays, 'path', '<unknown>')!r}: its population arrays do not "
                               "match its sample size")
     return pop
