@@ -1,17 +1,34 @@
 """Kernels spread over the threads (asperity_sim/threads.py).
 
 run_chunks gives every chunk to exactly one call, in contiguous ranges, runs them at once and
-passes a kernel's error on; a reduction over chunks has the same bits on 1 and 2 threads.
+passes a kernel's error on; a claimed kernel does every chunk once whoever claims it; the workers
+are woken from sleep, outlast a long part, serve two callers and a forked child; a reduction over
+chunks has the same bits on 1 and 2 threads.
 """
 
+import os
+import subprocess
+import sys
 import threading
+import time
 
 import numba
 import numpy as np
 import pytest
 
 from asperity_sim import Population, evaluate, presets
-from asperity_sim.threads import run_calls, run_chunks
+from asperity_sim.atomics import post_then_wait, wait_while
+from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, claim, run_calls, run_chunks
+
+
+@numba.njit(nogil=True)
+def _claimed(out, claims, lo, hi):
+    """A claimed kernel: out[kk] += 1 for every chunk kk it claims."""
+    for kk0 in range(lo, hi):
+        kk = claim(claims, kk0)
+        if kk >= hi:
+            break
+        out[kk] += 1
 
 
 def _with_threads(k, f):
@@ -98,3 +115,116 @@ def test_a_reduction_has_the_same_bits_on_one_and_two_threads(law):
     assert one.n_contact > 1000 and one.n_active > 32768
     for name in ("stress", "tangent", "covariance", "contact_area"):
         assert np.array_equal(getattr(one, name), getattr(two, name)), name
+
+
+@pytest.mark.parametrize("threads", sorted({1, numba.config.NUMBA_NUM_THREADS}))
+def test_a_claimed_kernel_does_every_chunk_once(threads):
+    for n_chunks in (0, 1, 2, 7, 64, 5000):
+        out, other = np.zeros(n_chunks, dtype=np.int64), np.zeros(3, dtype=np.int64)
+        _with_threads(threads, lambda: run_calls((_claimed, n_chunks, (out,), True), (_claimed, 3, (other,), True)))
+        assert np.all(out == 1) and np.all(other == 1), n_chunks
+
+
+def test_claim_counts_up_from_zero_and_keeps_the_own_range_without_claims():
+    claims = np.zeros(1, dtype=np.int64)
+    assert [claim(claims, 99) for _ in range(3)] == [0, 1, 2] and claims[0] == 3
+    assert claim(NO_CLAIMS, 99) == 99
+
+
+def test_polling_sees_another_threads_write_and_gives_up_after_its_polls():
+    flags = np.zeros(16, dtype=np.int64)
+    assert wait_while(flags, 3, 0, 1000) == 0  # nothing written: the polls run out
+    threading.Timer(0.02, flags.__setitem__, (3, 5)).start()
+    assert wait_while(flags, 3, 0, 10**9) == 5  # returns at the write, long before 10^9 polls
+    assert post_then_wait(flags, 9, 7, 3, 5, 1000) == 5 and flags[9] == 7
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+def test_a_sleeping_worker_is_woken_and_a_long_part_is_awaited():
+    """Parts after the workers fell asleep (50 ms > the polls), and a part that outlasts the caller's polls."""
+    seen, lock = [], threading.Lock()
+
+    def kernel(lo, hi):
+        if lo > 0:
+            time.sleep(0.02)
+        with lock:
+            seen.append((lo, threading.get_ident()))
+
+    for _ in range(3):
+        time.sleep(0.05)
+        _with_threads(2, lambda: run_chunks(kernel, 2))
+    assert sorted(lo for lo, _ in seen) == [0, 0, 0, 1, 1, 1]
+    assert all(ident != threading.get_ident() for lo, ident in seen if lo == 1)
+
+
+def test_the_workers_survive_an_error_in_a_part():
+    def failing(lo, hi):
+        if lo > 0:
+            raise ValueError(f"chunk {lo}")
+
+    out = np.zeros(6, dtype=np.int64)
+    for _ in range(2):
+        with pytest.raises(ValueError, match="chunk"):
+            _with_threads(numba.config.NUMBA_NUM_THREADS, lambda: run_chunks(failing, 4))
+        out[:] = 0
+        _with_threads(numba.config.NUMBA_NUM_THREADS, lambda: run_calls((_claimed, 6, (out,), True)))
+        assert np.all(out == 1)
+
+
+def test_two_callers_at_once_each_get_every_chunk():
+    """A call made while another holds the workers runs on its own thread: nothing lost, nothing blocks."""
+    results, errors = [[], []], []
+
+    def caller(i):
+        try:
+            for _ in range(200):
+                out = np.zeros(16, dtype=np.int64)
+                run_calls((_claimed, 16, (out,), True))
+                results[i].append(bool(np.all(out == 1)))
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    callers = [threading.Thread(target=caller, args=(i,)) for i in range(2)]
+    for c in callers:
+        c.start()
+    for c in callers:
+        c.join(timeout=60)
+    assert not errors and results == [[True] * 200, [True] * 200]
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or numba.config.NUMBA_NUM_THREADS < 2, reason="needs fork, 2 threads")
+def test_a_forked_child_starts_workers_of_its_own():
+    out = np.zeros(8, dtype=np.int64)
+    run_calls((_claimed, 8, (out,), True))  # the parent's workers exist
+    pid = os.fork()
+    if pid == 0:  # the child: its parent's worker threads are gone
+        code = 1
+        try:
+            out[:] = 0
+            run_calls((_claimed, 8, (out,), True))
+            code = 0 if np.all(out == 1) else 1
+        finally:
+            os._exit(code)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, 9)
+        pytest.fail("the forked child hung")
+    assert os.waitstatus_to_exitcode(status) == 0
+
+
+def test_workers_that_never_poll_still_run_every_part():
+    """ASPERITY_SIM_SPIN_US=0: workers sleep at once after each part and are woken by the next."""
+    code = ("import numpy as np, time; from asperity_sim.threads import run_chunks\n"
+            "seen = []\n"
+            "for _ in range(20):\n"
+            "    run_chunks(lambda lo, hi: seen.extend(range(lo, hi)), 6); time.sleep(0.001)\n"
+            "assert sorted(seen) == sorted(list(range(6)) * 20), seen\n"
+            "print('ok')\n")
+    env = {**os.environ, SPIN_ENV: "0", "NUMBA_NUM_THREADS": "2"}
+    run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
-from ..threads import chunks_of, run_chunks
+from ..threads import chunks_of, claim, run_chunks
 from ..vectormath import borrowed, copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
@@ -74,8 +74,8 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
 
 @template(nogil=True, error_model="numpy")
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-                 theta_birth, n_store, partial, slot_geo, kk_lo, kk_hi):
-    """Commit the committed contacts of chunks kk_lo .. kk_hi (strided order) at the converged ``delta``; sums
+                 theta_birth, n_store, partial, slot_geo, claims, kk_lo, kk_hi):
+    """Commit the committed contacts of chunks kk_lo .. kk_hi (strided order, claimed) at the converged ``delta``; sums
     (N_COMMIT) per chunk into ``partial``.
 
     A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
@@ -91,7 +91,10 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
-    for kk in range(kk_lo, kk_hi):
+    for kk0 in range(kk_lo, kk_hi):
+        kk = claim(claims, kk0)
+        if kk >= kk_hi:
+            break
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_COMMIT)
         work = stored = diss = events = 0.0

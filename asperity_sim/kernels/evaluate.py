@@ -258,7 +258,8 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         n_rows = chunks_of(n_active, CHUNK)
         reduce = kern["reduce_parallel"]
         wait_for(reduce)
-        run_chunks(reduce, n_rows, *pop.arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial)
+        run_calls((reduce, n_rows, (*pop.arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial),
+                   True))
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
         n_pop = chunks_of(n_active, CHUNK)
@@ -270,11 +271,11 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         calls = [(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box),
                   (state.flag, n_active, *pop.arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
                    state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
-                   workspace.n_box, workspace.tan_box))]
+                   workspace.n_box, workspace.tan_box), True)]
         if n_slot:  # one hand-off for both passes (they write different rows)
             calls.append((kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop.arrays, d,
                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
-                          workspace.slot_rows(state.n_slots))))
+                          workspace.slot_rows(state.n_slots)), True))
         run_calls(*calls)
         workspace.trials_by_index[index] += 1
         if index == 1:

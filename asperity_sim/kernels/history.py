@@ -16,6 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
+from ..threads import claim
 from ..vectormath import borrowed, copy_into
 from .contact import (
     accumulate,
@@ -70,10 +71,10 @@ def trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
 
 @template(nogil=True, error_model="numpy")
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-              theta_birth, partial, slot_geo, kk_lo, kk_hi):
+              theta_birth, partial, slot_geo, claims, kk_lo, kk_hi):
     """Rows of ``partial``: the committed contacts at the trial displacement, from their history (read only).
 
-    Chunks kk_lo .. kk_hi of the strided order (:func:`chunk_stride`, :func:`asperity_sim.threads.run_chunks`).
+    Chunks kk_lo .. kk_hi of the strided order (:func:`chunk_stride`), claimed (:func:`asperity_sim.threads.claim`).
 
     Under policy follow, per block of BLOCK slots: their inputs gathered contiguous, their
     geometry in a loop that LLVM vectorises (:func:`slot_geometry`), the law's trial per contact,
@@ -88,7 +89,10 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
     closure, dc = closure_and_slope(r_o, d1)
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
-    for kk in range(kk_lo, kk_hi):
+    for kk0 in range(kk_lo, kk_hi):
+        kk = claim(claims, kk0)
+        if kk >= kk_hi:
+            break
         ic = (kk * stride) % n_chunks
         acc = np.zeros(N_ACC)
         lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
@@ -150,7 +154,7 @@ def scan_chunks(n_active, index, n_box):
 
 @template(nogil=True, error_model="numpy")
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
-               partial, spans, index, listed, n_listed, box, n_box, tan_box, kk_lo, kk_hi):
+               partial, spans, index, listed, n_listed, box, n_box, tan_box, claims, kk_lo, kk_hi):
     """Rows of ``partial``: asperities without a committed contact that touch at the trial displacement.
 
     They take their follow angle (SPEC §3) and start from no history; committed contacts are
@@ -164,7 +168,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     from position ic CHUNK on, in order, their count in ``n_listed[ic]``.  2: only the listed
     asperities are tested (the caller checked that the box holds delta).  The same asperities
     touch in the same order, so the sums have the same bits whatever the index.  Chunks kk_lo .. kk_hi of
-    the strided order over :func:`scan_chunks`.
+    the strided order over :func:`scan_chunks`, claimed (:func:`asperity_sim.threads.claim`).
     """
     flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed = borrowed(
         (flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed))  # no reference counts
@@ -176,7 +180,10 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     n_scan = scan_chunks(n_active, index, n_box)
     stride = chunk_stride(n_scan)
-    for kk in range(kk_lo, kk_hi):
+    for kk0 in range(kk_lo, kk_hi):
+        kk = claim(claims, kk0)
+        if kk >= kk_hi:
+            break
         ic = (kk * stride) % n_scan
         lo = ic * CHUNK
         hi = min(n_active, lo + CHUNK)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
+from ..threads import claim
 from ..vectormath import borrowed, copy_into
 from .contact import (
     accumulate,
@@ -148,13 +149,13 @@ def chunk_any(ic, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, 
 
 
 @template(nogil=True, error_model="numpy")
-def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial, kk_lo,
-                    kk_hi):
+def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts, theta_birth, tan_max, partial,
+                    claims, kk_lo, kk_hi):
     """Partial sums of a path-independent law over the first n_active asperities, chunks kk_lo .. kk_hi.
 
-    Chunks go to the threads (:func:`asperity_sim.threads.run_chunks`) in the strided order of
-    :func:`chunk_stride`, so both threads get low (in contact, costly) and high (cheap) heights;
-    rows are overwritten.
+    Chunks go to the threads as they claim them (:func:`asperity_sim.threads.claim`) in the strided
+    order of :func:`chunk_stride`, so both threads get low (in contact, costly) and high (cheap)
+    heights; rows are overwritten.
     """
     r, R, u, cos_phi, sin_phi, theta_birth, partial = borrowed(
         (r, R, u, cos_phi, sin_phi, theta_birth, partial))  # no reference counts (vectormath.borrowed)
@@ -162,7 +163,10 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
     closure, dc = closure_and_slope(r_o, d1)
     n_chunks = (n_active + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)
-    for kk in range(kk_lo, kk_hi):
+    for kk0 in range(kk_lo, kk_hi):
+        kk = claim(claims, kk0)
+        if kk >= kk_hi:
+            break
         chunk_any((kk * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts,
                   theta_birth, tan_max, partial)
 

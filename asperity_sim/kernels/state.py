@@ -32,7 +32,7 @@ from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
 from ..memory import reserve
-from ..threads import chunks_of, run_chunks
+from ..threads import chunks_of, run_calls, run_chunks
 from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
@@ -159,9 +159,9 @@ class ContactState:
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
-            run_chunks(kern["commit_slots"], n_slot_chunks, self.asp, self.n_slots, self.dn_c, self.code, self.flag,
+            run_calls((kern["commit_slots"], n_slot_chunks, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
-                       self._partial, geo)
+                       self._partial, geo), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
         search = (self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max, counts, spans)
