@@ -70,7 +70,8 @@ def claim(claims, kk):
 
 
 class _Workers:
-    """The process's extra threads, each with a mailbox (``flags[LINE * (2 t)]``) and a done flag (``[LINE * (2 t + 1)]``)."""
+    """The process's extra threads: worker t's mailbox is ``flags[LINE * 2 t]``, its done flag
+    ``flags[LINE * (2 t + 1)]`` (the number of the part it was handed, and of the last it finished)."""
 
     def __init__(self, n: int):
         self.flags = np.zeros(LINE * 2 * (n + 1), dtype=np.int64)

@@ -1,9 +1,11 @@
-"""What handing a kernel's chunks to the other threads costs: the pool of Python threads against numba's own.
+"""What handing a kernel's chunks to the other threads costs: the package's workers against numba's own.
 
 Every parallel kernel of the package is serial code that takes a range of chunks and releases
-the GIL; :func:`asperity_sim.threads.run_chunks` gives the other threads their ranges from a pool
-of Python threads.  This benchmark times one call of a small kernel over 2, 20 and 200 chunks
-(1000 additions each, about 1.6 us) three ways, medians of ``--calls`` back-to-back calls:
+the GIL; :func:`asperity_sim.threads.run_chunks` gives the other threads their ranges through
+the package's worker threads (which wait for the next part awake, polling without the GIL, for
+up to ``ASPERITY_SIM_SPIN_US``).  This benchmark times one call of a small kernel over 2, 20 and
+200 chunks (1000 additions each, about 1.6 us) three ways, medians of ``--calls`` back-to-back
+calls:
 
 - ``direct``: the calling thread does every chunk;
 - ``pool``: :func:`~asperity_sim.threads.run_chunks`;
@@ -11,11 +13,11 @@ of Python threads.  This benchmark times one call of a small kernel over 2, 20 a
   (numba's threading layer: OpenMP here; ``OMP_WAIT_POLICY`` as in the environment).
 
 The difference between ``pool`` (or ``prange``) at 2 chunks and ``direct`` is the hand-off.  Why
-the package does not use the launcher although it hands off faster with spinning threads: numba
-compiles it once per kernel (the kernel is part of its argument types, and such a launcher is not
-served from the on-disk cache: a second compile in every process), and numba's parallel loops
-take only arrays and scalars, where the package's kernels take tuples (the law's constants and
-history arrays).
+the package does not use the launcher: numba compiles it once per kernel (the kernel is part of
+its argument types, and such a launcher is not served from the on-disk cache: a second compile in
+every process), and numba's parallel loops take only arrays and scalars, where the package's
+kernels take tuples (the law's constants and history arrays).  ``ASPERITY_SIM_SPIN_US=0
+python3 benchmarks/handoff.py`` times the workers that sleep at once after each part.
 
 Run:   python3 benchmarks/handoff.py [--calls 2000]
        OMP_WAIT_POLICY=ACTIVE python3 benchmarks/handoff.py
