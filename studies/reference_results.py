@@ -97,7 +97,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_against_f609918.json", "same_numbers_borrowed.md", "same_numbers_borrowed.json",
            "whole_run_1b758b9.json", "cold_start_1b758b9.json", "cold_start_against_f609918.json",
            "whole_run_one_thread.json", "whole_run_against_89a13e8.json", "whole_run_d5d7191.json",
-           "cold_start_891b0d2.json", "same_numbers_threads_awake.md", "same_numbers_threads_awake.json")
+           "cold_start_891b0d2.json", "same_numbers_threads_awake.md", "same_numbers_threads_awake.json",
+           "crowded_a53ef35.json")
 
 
 def script_path(name: str) -> Path:
