@@ -82,8 +82,7 @@ class _Workers:
         self.caller_asleep = [False] * (n + 1)
         self.finished = [threading.Semaphore(0) for _ in range(n + 1)]
         self.busy = threading.Lock()
-        self.polls = _polls_per_us(self.flags) * SPIN_US
-        self.polls = max(1, int(self.polls)) if SPIN_US > 0 else 0
+        self.polls = max(1, int(_polls_per_us(self.flags) * SPIN_US)) if SPIN_US > 0 else 0
         self.caller_polls = [self.polls] * (n + 1)  # what the caller polls for worker t's done (_adapt)
         for t in range(1, n + 1):
             threading.Thread(target=self._serve, args=(t,), daemon=True, name=f"asperity_sim-{t}").start()

@@ -395,6 +395,7 @@ def snapshot(pop, delta, policy="follow", theta_birth=None, law="paper"):
     tb = np.asarray(theta_birth, dtype=float) if (policy == "birth" and theta_birth is not None) else EMPTY
     out = {"delta_n": np.empty(pop.n), "theta": np.empty(pop.n), "force": np.empty((pop.n, 3)),
            "state": np.empty(pop.n, dtype=np.int8)}
-    run_chunks(kernels(lw, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), *pop.arrays, d, pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb,
-               out["delta_n"], out["theta"], out["force"], out["state"])
+    run_chunks(kernels(lw, birth=tb.size > 0)["snapshot_local"], chunks_of(pop.n, CHUNK), *pop.arrays, d,
+               pop.params.r_o, pop.params.k_e, lw.constants(pop.params, lw.options()), tb, out["delta_n"], out["theta"],
+               out["force"], out["state"])
     return out

@@ -56,12 +56,10 @@ def block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam):
 
 
 @kernel(inline="always")
-def prefetch_ahead(w_all, n_in, n_c, b0, i, m):
-    """Prefetch the springs in contact (n_in), and those entering (n_c), of the contact AHEAD rows after row i of a
-    block (the table's values as scalars: an array handed to an inlined function costs two atomic reference
-    counts per contact)."""
-    if i + AHEAD < m:
-        prefetch_springs(w_all, b0 + i + AHEAD, max(int(n_in), int(n_c)) + LANES)
+def prefetch_ahead(w_all, n_in, n_c, sl):
+    """Prefetch the springs in contact (n_in), and those entering (n_c), of slot ``sl`` (the table's values as
+    scalars: an array handed to an inlined function costs two atomic reference counts per contact)."""
+    prefetch_springs(w_all, sl, max(int(n_in), int(n_c)) + LANES)
 
 
 @kernel(error_model="numpy", fastmath=FAST)
@@ -76,8 +74,8 @@ def mdr_trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
     w_all, h_all = borrowed(arrays)  # no reference counts in the loops (asperity_sim.vectormath.borrowed)
     sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
-        ahead = min(i + AHEAD, m - 1)
-        prefetch_ahead(w_all, sc[S_NIN, ahead], sc[S_NC, ahead], b0, i, m)
+        if i + AHEAD < m:
+            prefetch_ahead(w_all, sc[S_NIN, i + AHEAD], sc[S_NC, i + AHEAD], b0 + i + AHEAD)
         if dn[i] <= 0.0:
             for a in range(13):
                 out[a, i] = 0.0
@@ -106,8 +104,8 @@ def mdr_commit_block(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch
     w_all, h_all = borrowed(arrays)  # no reference counts in the loops (asperity_sim.vectormath.borrowed)
     sc = block_scales(dn, dn_c, R, h_all, b0, m, E_star, lam)
     for i in range(m):
-        ahead = min(i + AHEAD, m - 1)
-        prefetch_ahead(w_all, sc[S_NIN, ahead], sc[S_NC, ahead], b0, i, m)
+        if i + AHEAD < m:
+            prefetch_ahead(w_all, sc[S_NIN, i + AHEAD], sc[S_NC, i + AHEAD], b0 + i + AHEAD)
         if not live[i]:
             continue
         sl = b0 + i
