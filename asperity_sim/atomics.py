@@ -64,17 +64,29 @@ def store_release(typingctx, flags, i, value):
     return numba.types.void(flags, i, value), codegen
 
 
-@numba.extending.intrinsic
-def fetch_add(typingctx, flags, i, value):
-    """``flags[i] += value`` as one atomic step (``lock xadd``): the value before."""
+def _atomic_add(flags, i, value, ordering):
+    """The typing and codegen of an atomic ``flags[i] += value`` with memory ordering ``ordering``."""
     if not _int64_vector(flags):
         return None
 
     def codegen(context, builder, signature, args):
         return builder.atomic_rmw("add", _element(context, builder, signature, args),
-                                  _int64(context, builder, signature, args, 2), "monotonic")
+                                  _int64(context, builder, signature, args, 2), ordering)
 
     return numba.types.int64(flags, i, value), codegen
+
+
+@numba.extending.intrinsic
+def fetch_add(typingctx, flags, i, value):
+    """``flags[i] += value`` as one atomic step (``lock xadd``): the value before."""
+    return _atomic_add(flags, i, value, "monotonic")
+
+
+@numba.extending.intrinsic
+def fetch_add_acq_rel(typingctx, flags, i, value):
+    """:func:`fetch_add` that also orders memory: what a thread wrote before it is visible to a thread that
+    adds after it (the last of several threads to finish a piece of work reads what the others wrote)."""
+    return _atomic_add(flags, i, value, "acq_rel")
 
 
 _PAUSE = "llvm.x86.sse2.pause" if platform.machine().lower() in ("x86_64", "amd64", "i686", "i386") else None
@@ -141,3 +153,12 @@ def post_then_wait(flags, i_post, value, i_wait, seen, polls):
     already given up, so the caller that sees it never waits for the GIL."""
     store_release(flags, i_post, value)
     return wait_while(flags, i_wait, seen, polls)
+
+
+@kernel(nogil=True)
+def post_each_then_wait(flags, slots, values, watched, seen, polls):
+    """``flags[slots[k]] = values[k]`` for each k, then :func:`wait_while` on ``watched[0]``: the posts are made with
+    the GIL given up, so a worker that sees its post takes the GIL at once instead of sleeping until it is free."""
+    for k in range(slots.size):
+        store_release(flags, slots[k], values[k])
+    return wait_while(watched, 0, seen, polls)

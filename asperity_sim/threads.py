@@ -40,14 +40,16 @@ import time
 import numba
 import numpy as np
 
-from .atomics import fetch_add, post_then_wait, wait_while
+from .atomics import fetch_add, post_each_then_wait, post_then_wait, wait_while
 from .jit import kernel
 
-__all__ = ["run_chunks", "run_calls", "chunks_of", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV"]
+__all__ = ["run_chunks", "run_calls", "chunks_of", "few_chunks", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV"]
 
 SPIN_ENV = "ASPERITY_SIM_SPIN_US"
 """Environment variable: how long [us] an idle thread polls for work before it sleeps (default 1000; 0: at once)."""
 SPIN_US = float(os.environ.get(SPIN_ENV, "1000"))
+ENTRY_US = 50.0
+"""How long [us] a caller waits for a worker to start a claimed kernel before it starts its own part."""
 LINE = 8
 """int64 entries per cache line: each thread's mailbox and done flag sit on lines of their own."""
 
@@ -84,6 +86,7 @@ class _Workers:
         self.busy = threading.Lock()
         self.polls = max(1, int(_polls_per_us(self.flags) * SPIN_US)) if SPIN_US > 0 else 0
         self.caller_polls = [self.polls] * (n + 1)  # what the caller polls for worker t's done (_adapt)
+        self.entry_polls = max(1, int(self.polls * ENTRY_US / SPIN_US)) if SPIN_US > 0 else 0
         for t in range(1, n + 1):
             threading.Thread(target=self._serve, args=(t,), daemon=True, name=f"asperity_sim-{t}").start()
 
@@ -119,18 +122,30 @@ class _Workers:
             return min(self.polls, max(2 * polls, 1))
         return polls // 2
 
-    def run(self, parts: list) -> None:
-        """Part 0 on the calling thread, part t on worker t, all at once; the first error raised again."""
+    def run(self, parts: list, entered=None) -> None:
+        """Part 0 on the calling thread, part t on worker t, all at once; the first error raised again.
+
+        ``entered``: the claims of the first call, if it is claimed.  The parts are then posted from
+        compiled code with the GIL given up, and the caller starts its own part once a worker has
+        claimed a chunk (or after ENTRY_US): a worker that sees its part while the caller holds the GIL
+        sleeps until it is free, 30 us on a virtual machine, where now it finds it free.
+        """
         posted = []
         for t, part in enumerate(parts[1:], start=1):
             if part:
                 epoch = int(self.flags[LINE * 2 * t]) + 1
                 self._wait_done(t, epoch - 1)  # a caller interrupted (Ctrl-C) may have left it a part
                 self.errors[t], self.parts[t] = None, part
-                self.flags[LINE * 2 * t] = epoch
-                if self.asleep[t]:
-                    self.waking[t].release()
                 posted.append((t, epoch))
+        if entered is not None and posted and self.entry_polls and not any(self.asleep[t] for t, _ in posted):
+            post_each_then_wait(self.flags, np.array([LINE * 2 * t for t, _ in posted], dtype=np.int64),
+                                np.array([epoch for _, epoch in posted], dtype=np.int64), entered, 0, self.entry_polls)
+        else:
+            for t, epoch in posted:
+                self.flags[LINE * 2 * t] = epoch
+        for t, _ in posted:  # after the post: a worker that fell asleep before it sees it
+            if self.asleep[t]:
+                self.waking[t].release()
         try:
             _run_part(parts[0])
         finally:
@@ -184,6 +199,13 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_WORKERS.clear)  # a forked child has none of its parent's threads
 
 
+def few_chunks(n_chunks: int) -> bool:
+    """True if ``n_chunks`` are too few to spread evenly over numba's threads (fewer than 8 a thread, and more than
+    one thread): a kernel that can then hands out smaller pieces."""
+    threads = numba.get_num_threads()
+    return 1 < threads and n_chunks < 8 * threads
+
+
 def chunks_of(n: int, size: int) -> int:
     """How many chunks of ``size`` items hold n items."""
     return (n + size - 1) // size
@@ -208,6 +230,8 @@ def run_calls(*calls) -> None:
     threads = max(1, min(numba.get_num_threads(), max(call[1] for call in calls)))
     counters = np.zeros(LINE * len(calls), dtype=np.int64) if threads > 1 else None
     parts: list[list] = [[] for _ in range(threads)]
+    first = next((c for c, call in enumerate(calls) if call[1] > 0), 0)
+    entered = counters[LINE * first:LINE * first + 1] if threads > 1 and calls[first][3:4] == (True,) else None
     for c, (kernel_, n_chunks, args, *claimed) in enumerate(calls):
         if claimed and claimed[0]:
             claims = NO_CLAIMS if threads == 1 else counters[LINE * c:LINE * c + 1]
@@ -228,7 +252,7 @@ def run_calls(*calls) -> None:
             _run_part(part)
         return
     try:
-        workers.run(parts)
+        workers.run(parts, entered)
     finally:
         workers.busy.release()
 

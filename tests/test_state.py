@@ -183,6 +183,31 @@ def test_slots_grow_the_same_where_reserving_them_is_refused(monkeypatch):
         assert np.array_equal(a[name], b[name]), name
 
 
+@pytest.mark.parametrize("policy", ["follow", "birth"])
+def test_a_commit_by_blocks_has_the_bits_of_a_commit_by_chunks(monkeypatch, policy):
+    """Where a few chunks of slots would spread unevenly over the threads, the threads claim blocks of slots and
+    the thread that ends a chunk sums its contacts in slot order: the committed state and every sum of every
+    commit are those of the commit chunk by chunk, bit for bit (with contacts lost, so slots freed, on the way)."""
+    runs = {}
+    for blocks in (True, False):
+        monkeypatch.setattr(state_module, "few_chunks", lambda n_chunks, blocks=blocks: blocks)
+        pop = Population.sample(R1, 30000, seed=5)
+        hist = ContactState(pop, "mdr", policy, k=8)
+        sums = []
+        for d in ([np.array([x, 0, 0]) * um for x in (6.0, 12.0, 16.0)]
+                  + [np.array([16.0, y, -0.5 * y]) * um for y in (2.0, 4.0)] + [np.array([13.0, 3.0, -2.0]) * um]):
+            ws = Workspace(pop.n)
+            evaluate(pop, d, law="mdr", policy=policy, state=hist, workspace=ws)
+            r = hist.commit(d, workspace=ws)
+            sums.append([r.work, r.stored, r.dissipation, r.events, *r.transitions.ravel()])
+        assert (hist._by_slot_cols is not None) == blocks and hist.n_slots > 2 * 2048  # several chunks, by blocks
+        runs[blocks] = hist.state_arrays(), np.array(sums)
+    (a, sa), (b, sb) = runs[True], runs[False]
+    assert sa[-1, 4 + 4 * 1 + 0] > 0  # some contacts in stick were lost in the last commit
+    assert np.array_equal(sa, sb)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k], equal_nan=True) for k in a)
+
+
 def test_reserved_slots_hold_a_turnover_of_nearly_every_asperity():
     """Contacts lost and born in one increment reuse the freed slots first, so the reserved slots (one per
     asperity) never need to grow, even when the slots in use plus the contacts born exceed the asperities (a

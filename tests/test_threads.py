@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from asperity_sim import Population, evaluate, presets
-from asperity_sim.atomics import post_then_wait, wait_while
-from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, claim, run_calls, run_chunks
+from asperity_sim.atomics import fetch_add_acq_rel, post_each_then_wait, post_then_wait, wait_while
+from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, SPIN_US, claim, run_calls, run_chunks
 
 
 @numba.njit(nogil=True)
@@ -129,6 +129,53 @@ def test_claim_counts_up_from_zero_and_keeps_the_own_range_without_claims():
     claims = np.zeros(1, dtype=np.int64)
     assert [claim(claims, 99) for _ in range(3)] == [0, 1, 2] and claims[0] == 3
     assert claim(NO_CLAIMS, 99) == 99
+
+
+@numba.njit(nogil=True)
+def _first_claim(claims, lo, hi):
+    """The first chunk this thread claims (-1: none), then the rest of them."""
+    first = -1
+    for kk0 in range(lo, hi):
+        kk = claim(claims, kk0)
+        if kk >= hi:
+            break
+        if first < 0:
+            first = kk
+    return first
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2 or SPIN_US <= 0, reason="needs 2 threads that poll")
+def test_an_awake_worker_claims_before_the_caller_starts():
+    """The caller posts a claimed call with the GIL given up and starts its own part only once the worker has
+    claimed a chunk, so the worker, awake between calls, takes chunk 0 (without that it took it 30 us late)."""
+    caller, calls = threading.get_ident(), []
+
+    def kernel(claims, lo, hi):
+        first = _first_claim(claims, lo, hi)
+        if threading.get_ident() != caller:
+            calls[-1] = first
+
+    def run():
+        for _ in range(60):
+            calls.append(None)
+            run_calls((kernel, 64, (), True))
+
+    _with_threads(2, run)
+    worker_first = calls[20:]  # the worker's first claim in each call, once it polls between calls
+    assert None not in worker_first and worker_first.count(0) > 20, worker_first
+
+
+@numba.njit
+def _add(flags, i, value):
+    return fetch_add_acq_rel(flags, i, value)
+
+
+def test_posts_then_polling_and_an_ordered_atomic_add():
+    flags, watched = np.zeros(24, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    slots, values = np.array([3, 11], dtype=np.int64), np.array([5, 7], dtype=np.int64)
+    assert post_each_then_wait(flags, slots, values, watched, 0, 100) == 0  # nobody writes watched: polls run out
+    assert flags[3] == 5 and flags[11] == 7 and flags.sum() == 12
+    assert [_add(flags, 3, 2) for _ in range(3)] == [5, 7, 9] and flags[3] == 11
 
 
 def test_polling_sees_another_threads_write_and_gives_up_after_its_polls():

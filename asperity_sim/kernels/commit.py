@@ -16,12 +16,19 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
+from ..atomics import fetch_add_acq_rel
 from ..threads import chunks_of, claim, run_chunks
 from ..vectormath import borrowed, copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
 from .layout import (
     BIRTH,
     BLOCK,
+    B_DISS,
+    B_EVENTS,
+    B_STORED,
+    B_TR,
+    B_WORK,
+    BLOCKS_PER_CHUNK,
     C_DISS,
     C_EVENTS,
     C_STORED,
@@ -74,7 +81,7 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
 
 @template(nogil=True, error_model="numpy")
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-                 theta_birth, n_store, partial, slot_geo, claims, kk_lo, kk_hi):
+                 theta_birth, n_store, partial, slot_geo, by_slot, done, claims, kk_lo, kk_hi):
     """Commit the committed contacts of chunks kk_lo .. kk_hi (strided order, claimed) at the converged ``delta``; sums
     (N_COMMIT) per chunk into ``partial``.
 
@@ -82,27 +89,38 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`, or
     read from ``slot_geo`` when a trial at ``delta`` on this committed state left it there (not
     empty; the same bits).
+
+    By blocks (``done`` not empty: a chunk count per chunk): the pieces claimed are the blocks of
+    BLOCK slots of each chunk in turn (BLOCKS_PER_CHUNK, the last maybe empty), so that a few
+    chunks still spread evenly over the threads.  Each contact's sums go to its column of
+    ``by_slot`` (:func:`slot_sums`), and the thread that finishes a chunk's last block adds them up
+    in slot order: the same sums, the same bits, as chunk by chunk.
     """
-    asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo = borrowed(
-        (asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo))  # no reference counts
+    asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo, by_slot = borrowed(
+        (asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo, by_slot))
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
     known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
+    blocks = done.size > 0
+    per = BLOCKS_PER_CHUNK if blocks else 1
     for kk0 in range(kk_lo, kk_hi):
         kk = claim(claims, kk0)
         if kk >= kk_hi:
             break
-        ic = (kk * stride) % n_chunks
+        ic = ((kk // per) * stride) % n_chunks
+        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
+        if blocks:
+            lo = min(hi, lo + (kk % per) * BLOCK)
+            hi = min(hi, lo + BLOCK)
         acc = np.zeros(N_COMMIT)
         work = stored = diss = events = 0.0
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         geo = np.empty((N_GEO, BLOCK))
         live = np.empty(BLOCK, dtype=np.bool_)
         res = np.empty((5, BLOCK))
-        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
         for b0 in range(lo, hi, BLOCK):
             m = min(hi, b0 + BLOCK) - b0
             if BIRTH:
@@ -132,14 +150,20 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                 sl = b0 + i
                 j = asp[sl]
                 if j < 0:
+                    if blocks:
+                        by_slot[B_TR, sl] = -1.0
                     continue
                 dn = geo[G_DN, i]
                 new = int(res[0, i])
-                work += res[1, i]
-                stored += res[2, i]
-                diss += res[3, i]
-                events += res[4, i]
-                acc[C_TR + 4 * code[sl] + new] += 1.0
+                if blocks:
+                    by_slot[B_WORK, sl], by_slot[B_STORED, sl], by_slot[B_DISS, sl] = res[1, i], res[2, i], res[3, i]
+                    by_slot[B_EVENTS, sl], by_slot[B_TR, sl] = res[4, i], float(4 * code[sl] + new)
+                else:
+                    work += res[1, i]
+                    stored += res[2, i]
+                    diss += res[3, i]
+                    events += res[4, i]
+                    acc[C_TR + 4 * code[sl] + new] += 1.0
                 if dn <= 0.0:
                     asp[sl] = -1
                     flag[j] = 0
@@ -148,8 +172,30 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                 else:
                     dn_c[sl] = dn
                     code[sl] = new
-        acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
-        copy_into(partial[ic], acc)
+        if not blocks:
+            acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
+            copy_into(partial[ic], acc)
+        elif fetch_add_acq_rel(done, ic, 1) == per - 1:  # the chunk's last block: its sums, in slot order
+            slot_sums(by_slot, ic * CHUNK, min(n_slots, (ic + 1) * CHUNK), partial[ic])
+
+
+@kernel(inline="always")
+def slot_sums(by_slot, lo, hi, row):
+    """``row`` (N_COMMIT): the sums of slots lo .. hi from their columns of ``by_slot``, in slot order (the order,
+    and so the bits, of :func:`commit_slots` chunk by chunk)."""
+    acc = np.zeros(N_COMMIT)
+    work = stored = diss = events = 0.0
+    for sl in range(lo, hi):
+        tr = by_slot[B_TR, sl]
+        if tr < 0.0:
+            continue
+        work += by_slot[B_WORK, sl]
+        stored += by_slot[B_STORED, sl]
+        diss += by_slot[B_DISS, sl]
+        events += by_slot[B_EVENTS, sl]
+        acc[C_TR + int(tr)] += 1.0
+    acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
+    copy_into(row, acc)
 
 
 @kernel(nogil=True)
@@ -188,11 +234,12 @@ def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_m
 
 @template(nogil=True, error_model="numpy")
 def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts,
-                 arrays, n_store, partial, kk_lo, kk_hi):
+                 arrays, n_store, partial, by_slot, done, claims, kk_lo, kk_hi):
     """Commit the contacts born in this increment (slots ``new_slots``, assigned in asperity order), chunks
-    kk_lo .. kk_hi of them."""
-    new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial = borrowed(
-        (new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial))  # no reference counts
+    kk_lo .. kk_hi of them (claimed).  By blocks (``done`` not empty) as :func:`commit_slots`, each contact's
+    sums in column ii (its place in ``new_slots``) of ``by_slot``."""
+    new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial, by_slot = borrowed(
+        (new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, arrays, partial, by_slot))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, _ = closure_and_slope(r_o, d1)
@@ -200,10 +247,20 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     # True as a run-time bool: with literal True here and False in the committed contacts' commit, numba would
     # compile the law's commit twice (once per argument type)
     fresh = m >= 0
-    for ic in range(kk_lo, kk_hi):
+    blocks = done.size > 0
+    per = BLOCKS_PER_CHUNK if blocks else 1
+    for kk0 in range(kk_lo, kk_hi):
+        kk = claim(claims, kk0)
+        if kk >= kk_hi:
+            break
+        ic = kk // per
+        lo, hi = ic * CHUNK, min(m, (ic + 1) * CHUNK)
+        if blocks:
+            lo = min(hi, lo + (kk % per) * BLOCK)
+            hi = min(hi, lo + BLOCK)
         acc = np.zeros(N_COMMIT)
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
-        for ii in range(ic * CHUNK, min(m, (ic + 1) * CHUNK)):
+        for ii in range(lo, hi):
             sl = new_slots[ii]
             j = asp[sl]
             cp, sp = cos_phi[j], sin_phi[j]
@@ -216,14 +273,21 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
             _, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
             new, work, stored, diss, events = commit_law(dn, dds, ddt, dnc, dn_ref, R[j], consts, arrays, sl, fresh,
                                                          scratch)
-            acc[C_WORK] += work
-            acc[C_STORED] += stored
-            acc[C_DISS] += diss
-            acc[C_EVENTS] += events
-            acc[C_TR + new] += 1.0
+            if blocks:
+                by_slot[B_WORK, ii], by_slot[B_STORED, ii], by_slot[B_DISS, ii] = work, stored, diss
+                by_slot[B_EVENTS, ii], by_slot[B_TR, ii] = events, float(new)  # born: code 0 before
+            else:
+                acc[C_WORK] += work
+                acc[C_STORED] += stored
+                acc[C_DISS] += diss
+                acc[C_EVENTS] += events
+                acc[C_TR + new] += 1.0
             dn_c[sl] = dn
             code[sl] = new
-        copy_into(partial[ic], acc)
+        if not blocks:
+            copy_into(partial[ic], acc)
+        elif fetch_add_acq_rel(done, ic, 1) == per - 1:  # the chunk's last block: its sums, in order
+            slot_sums(by_slot, ic * CHUNK, min(m, (ic + 1) * CHUNK), partial[ic])
 
 
 def birth_angles(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_birth):

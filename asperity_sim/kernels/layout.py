@@ -110,6 +110,7 @@ N_OUT = 37
 V_G, V_T, V_NC, V_NS, V_NP, V_TH, V_A, V_AT = 0, 3, 12, 13, 14, 15, 16, 17
 N_VAL = 20
 BLOCK = 256  # asperities per block (20 x 256 doubles of values = 40 KiB, in L1)
+BLOCKS_PER_CHUNK = CHUNK // BLOCK
 # inputs of one block, one row of BLOCK each: Delta_1 - r, cos phi, sin phi, R, u
 X_X, X_CP, X_SP, X_R, X_U = 0, 1, 2, 3, 4
 N_IN = 5
@@ -128,9 +129,15 @@ N_SLOT_GEO = len(SLOT_GEO_ROWS)
 C_WORK, C_STORED, C_DISS, C_EVENTS, C_TR = 0, 1, 2, 3, 4
 N_COMMIT = 4 + 16
 
+# rows of one committed contact's sums when a commit goes by blocks (``by_slot``): work, stored energy,
+# dissipation, law events, transition (4 x code before + code after; -1: no committed contact)
+B_WORK, B_STORED, B_DISS, B_EVENTS, B_TR = 0, 1, 2, 3, 4
+N_BY_SLOT = 5
+
 
 EMPTY = np.empty(0)
 EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
 EMPTY_INDEX = np.zeros(0, dtype=np.int32)
 EMPTY_SLOT_GEO = np.zeros((N_SLOT_GEO, 0))
 EMPTY_COUNTS = np.zeros(0, dtype=np.int64)
+EMPTY_BY_SLOT = np.zeros((N_BY_SLOT, 0))

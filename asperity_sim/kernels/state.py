@@ -32,10 +32,26 @@ from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
 from ..memory import reserve
-from ..threads import chunks_of, run_calls, run_chunks
+from ..threads import chunks_of, few_chunks, run_calls, run_chunks
 from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
-from .layout import C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, EMPTY, EMPTY_SLOT_GEO, EMPTY_SPANS, N_COMMIT
+from .layout import (
+    BLOCK,
+    BLOCKS_PER_CHUNK,
+    C_DISS,
+    C_EVENTS,
+    C_STORED,
+    C_TR,
+    C_WORK,
+    CHUNK,
+    EMPTY,
+    EMPTY_BY_SLOT,
+    EMPTY_COUNTS,
+    EMPTY_SLOT_GEO,
+    EMPTY_SPANS,
+    N_BY_SLOT,
+    N_COMMIT,
+)
 from .reach import bounds
 from .specialise import kernels
 
@@ -82,6 +98,7 @@ class ContactState:
             self._allocate_slots(pop.n)
             self._counts = np.zeros(0, dtype=np.int64)
             self._partial = np.zeros((0, N_COMMIT))
+            self._by_slot_cols = None
 
     def _allocate_slots(self, n):
         """The slot arrays: reserved for as many slots as asperities (:func:`asperity_sim.memory.reserve`: only
@@ -159,9 +176,13 @@ class ContactState:
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
-            run_calls((kern["commit_slots"], n_slot_chunks, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
+            by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_slot_chunks
+            if few_chunks(n_slot_chunks):  # few chunks: the threads claim blocks (the same sums)
+                by_slot, done = self._by_slot(), np.zeros(n_slot_chunks, dtype=np.int64)
+                pieces = n_slot_chunks * BLOCKS_PER_CHUNK
+            run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
-                       self._partial, geo), True))
+                       self._partial, geo, by_slot, done), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         counts = self._counts[:n_pop_chunks]
         search = (self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max, counts, spans)
@@ -181,15 +202,29 @@ class ContactState:
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])
-            run_chunks(kern["commit_fresh"], n_new_chunks, new_slots, self.asp, self.dn_c, self.code, *pop.arrays,
-                       delta, self.delta_c, self.reference, p.r_o, p.k_e, self.consts, self.arrays, self.n_stored,
-                       self._partial)
+            by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_new_chunks
+            if n_new >= 2 * BLOCK and few_chunks(n_new_chunks):  # as the committed contacts' commit
+                by_slot, done = self._by_slot(), np.zeros(n_new_chunks, dtype=np.int64)
+                pieces = n_new_chunks * BLOCKS_PER_CHUNK
+            run_calls((kern["commit_fresh"], pieces, (new_slots, self.asp, self.dn_c, self.code, *pop.arrays, delta,
+                       self.delta_c, self.reference, p.r_o, p.k_e, self.consts, self.arrays, self.n_stored,
+                       self._partial, by_slot, done), True))
             sums += self._partial[:n_new_chunks].sum(axis=0)
         scale = p.N * pop.weight
         transitions = np.rint(sums[C_TR:C_TR + 16]).astype(np.int64).reshape(4, 4)
         transitions[0, 0] = pop.n - transitions.sum()  # out of contact before and after
         return CommitResult(work=scale * sums[C_WORK], stored=scale * sums[C_STORED], dissipation=scale * sums[C_DISS],
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
+
+    def _by_slot(self):
+        """The columns of a commit by blocks (N_BY_SLOT, as many as the slot arrays: reserved as they are, so only the
+        slots in use cost memory, and only runs with few slots commit by blocks)."""
+        if self._by_slot_cols is None or self._by_slot_cols.shape[1] < self.asp.size:
+            try:
+                self._by_slot_cols = reserve((N_BY_SLOT, self.asp.size))
+            except MemoryError:
+                self._by_slot_cols = np.empty((N_BY_SLOT, self.asp.size))
+        return self._by_slot_cols
 
     def _reserve(self, needed):
         """Room for ``needed`` slots: grows the arrays of 1024 slots made when reserving was refused (reserved
