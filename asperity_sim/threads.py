@@ -43,7 +43,7 @@ import numpy as np
 from .atomics import fetch_add, post_each_then_wait, post_then_wait, wait_while
 from .jit import kernel
 
-__all__ = ["run_chunks", "run_calls", "chunks_of", "few_chunks", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV"]
+__all__ = ["run_chunks", "run_calls", "chunks_of", "uneven", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV"]
 
 SPIN_ENV = "ASPERITY_SIM_SPIN_US"
 """Environment variable: how long [us] an idle thread polls for work before it sleeps (default 1000; 0: at once)."""
@@ -199,11 +199,12 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_WORKERS.clear)  # a forked child has none of its parent's threads
 
 
-def few_chunks(n_chunks: int) -> bool:
-    """True if ``n_chunks`` are too few to spread evenly over numba's threads (fewer than 8 a thread, and more than
-    one thread): a kernel that can then hands out smaller pieces."""
+def uneven(n_chunks: int) -> bool:
+    """True if ``n_chunks`` chunks of equal work spread unevenly over numba's threads: in the last round some thread
+    idles for more than 1/20 of the work (one chunk on two threads, three, five ...).  A kernel that can then hands
+    out smaller pieces, at a cost of about that much (:func:`asperity_sim.kernels.commit.commit_slots`)."""
     threads = numba.get_num_threads()
-    return 1 < threads and n_chunks < 8 * threads
+    return threads > 1 and -(-n_chunks // threads) * threads > 1.05 * n_chunks
 
 
 def chunks_of(n: int, size: int) -> int:

@@ -190,7 +190,7 @@ def test_a_commit_by_blocks_has_the_bits_of_a_commit_by_chunks(monkeypatch, poli
     commit are those of the commit chunk by chunk, bit for bit (with contacts lost, so slots freed, on the way)."""
     runs = {}
     for blocks in (True, False):
-        monkeypatch.setattr(state_module, "few_chunks", lambda n_chunks, blocks=blocks: blocks)
+        monkeypatch.setattr(state_module, "uneven", lambda n_chunks, blocks=blocks: blocks)
         pop = Population.sample(R1, 30000, seed=5)
         hist = ContactState(pop, "mdr", policy, k=8)
         sums = []

@@ -32,7 +32,7 @@ from .. import laws
 from ..checks import check_choice
 from ..geometry import POLICIES
 from ..memory import reserve
-from ..threads import chunks_of, few_chunks, run_calls, run_chunks
+from ..threads import chunks_of, run_calls, run_chunks, uneven
 from .ahead import wait_for
 from .commit import assign_slots, birth_angles, find_fresh
 from .layout import (
@@ -177,7 +177,7 @@ class ContactState:
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_slot_chunks
-            if few_chunks(n_slot_chunks):  # few chunks: the threads claim blocks (the same sums)
+            if uneven(n_slot_chunks):  # chunks that split unevenly: the threads claim blocks (the same sums)
                 by_slot, done = self._by_slot(), np.zeros(n_slot_chunks, dtype=np.int64)
                 pieces = n_slot_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
@@ -203,7 +203,7 @@ class ContactState:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_new_chunks
-            if n_new >= 2 * BLOCK and few_chunks(n_new_chunks):  # as the committed contacts' commit
+            if n_new >= 2 * BLOCK and uneven(n_new_chunks):  # as the committed contacts' commit
                 by_slot, done = self._by_slot(), np.zeros(n_new_chunks, dtype=np.int64)
                 pieces = n_new_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_fresh"], pieces, (new_slots, self.asp, self.dn_c, self.code, *pop.arrays, delta,
