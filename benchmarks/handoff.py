@@ -9,6 +9,9 @@ calls:
 
 - ``direct``: the calling thread does every chunk;
 - ``pool``: :func:`~asperity_sim.threads.run_chunks`;
+- ``claimed``: the same chunks claimed (:func:`~asperity_sim.threads.claim`, as the kernels over
+  contacts take theirs), through :func:`~asperity_sim.threads.run_calls`: the part is posted with the
+  GIL given up, and the caller starts once the worker has claimed a chunk;
 - ``prange``: a numba ``parallel=True`` launcher whose loop over the threads calls the kernel
   (numba's threading layer: OpenMP here; ``OMP_WAIT_POLICY`` as in the environment).
 
@@ -34,7 +37,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from asperity_sim.threads import run_chunks
+from asperity_sim.threads import claim, run_calls, run_chunks
 
 WORK = 1000  # additions per chunk
 
@@ -46,6 +49,19 @@ def chunks(a, x, out, lo, hi):
     for i in range(lo * WORK, hi * WORK):
         s += a[i % a.size]
     out[lo] = s
+
+
+@numba.njit(nogil=True)
+def claimed_chunks(a, x, out, claims, lo, hi):
+    """:func:`chunks`, each thread taking the next chunk nobody has taken."""
+    for kk0 in range(lo, hi):
+        kk = claim(claims, kk0)
+        if kk >= hi:
+            break
+        s = x
+        for i in range(kk * WORK, (kk + 1) * WORK):
+            s += a[i % a.size]
+        out[kk] = s
 
 
 @numba.njit(parallel=True, nogil=True)
@@ -77,6 +93,7 @@ def main(argv=None):
 
     ways = {"direct": lambda m: chunks(a, 0.0, out, 0, m),
             "pool": lambda m: run_chunks(chunks, m, a, 0.0, out),
+            "claimed": lambda m: run_calls((claimed_chunks, m, (a, 0.0, out), True)),
             "prange": lambda m: launch(chunks, a, 0.0, out, edges(m))}
     t = time.perf_counter()
     launch(chunks, a, 0.0, out, edges(2))
