@@ -18,7 +18,7 @@ import pytest
 
 from asperity_sim import Population, evaluate, presets
 from asperity_sim.atomics import fetch_add_acq_rel, post_each_then_wait, post_then_wait, wait_while
-from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, SPIN_US, claim, run_calls, run_chunks
+from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, SPIN_US, claim, run_calls, run_chunks, uneven
 
 
 @numba.njit(nogil=True)
@@ -168,6 +168,15 @@ def test_an_awake_worker_claims_before_the_caller_starts():
 @numba.njit
 def _add(flags, i, value):
     return fetch_add_acq_rel(flags, i, value)
+
+
+def test_chunks_split_unevenly_where_the_last_round_idles_a_thread_for_over_a_twentieth():
+    """uneven(n): some thread idles in the last round for more than 1/20 of the work of n equal chunks."""
+    expected = {k: [n for n in range(1, 41) if -(-n // k) * k - n > n / 20] for k in (1, 2, 4)}
+    assert expected[2] == [1, 3, 5, 7, 9, 11, 13, 15, 17, 19] and expected[4][:5] == [1, 2, 3, 5, 6]
+    for k in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS), min(4, numba.config.NUMBA_NUM_THREADS)}):
+        got = _with_threads(k, lambda: [n for n in range(1, 41) if uneven(n)])
+        assert got == ([] if k == 1 else expected[k]), k
 
 
 def test_posts_then_polling_and_an_ordered_atomic_add():
