@@ -28,7 +28,9 @@ in the same way.  During a run the workers stay awake between the kernels of the
 and fall asleep after it.  Polling is polite: every 32nd poll yields the core to any thread ready
 to run on it, and a wait that ends asleep after longer than ``SPIN_US`` halves the next one's
 polling (one that ends sooner doubles it), so where threads outnumber the cores the polling
-stops.  ``ASPERITY_SIM_SPIN_US=0`` turns it off.
+stops.  ``ASPERITY_SIM_SPIN_US=0`` turns it off.  A call whose first kernel is claimed is posted
+with the GIL given up, and the caller starts its own part once a worker has claimed a chunk:
+a worker that sees its part while the caller holds the GIL sleeps until it is free (30 us).
 """
 
 from __future__ import annotations

@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
+from ..atomics import fetch_add_acq_rel
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import kernel, template
-from ..atomics import fetch_add_acq_rel
 from ..threads import chunks_of, claim, run_chunks
 from ..vectormath import borrowed, copy_into
 from .contact import asperity_theta, committed_overlap, contact_angle, gather_slots, slot_geometry
