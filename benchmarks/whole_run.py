@@ -18,7 +18,10 @@ process, because absolute times drift on a shared machine):
    of the run (between k and 2k each: a contact grows after its springs are spaced).  The bytes
    the mdr state holds in use at the end are reported beside it, and the same run with the
    springs stored in float32 (``spring_dtype``, an option; float64 is the default): its peak
-   against the same reference, and its largest stress difference from the float64 run.
+   against the same reference, and its largest stress difference from the float64 run.  A kernel
+   compiled in the measured run (a cold cache, or the package's source edited while the benchmark
+   runs) would put the compiler's memory in the peak: the record lists any (``compiled_in_run``),
+   and the benchmark warns.
 3. **Threads**: the same path at ``--thread-n`` asperities with 1 and with every thread numba
    has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
    >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
@@ -131,6 +134,7 @@ sys.path.insert(0, sys.argv[3])
 from whole_run import bench_path, law_kw
 from asperity_sim import Population, presets, simulate
 from asperity_sim.solve import run as driver
+from numba.core import event
 
 def peak_rss():
     # this process's own peak [B]: VmHWM starts anew at exec, where ru_maxrss keeps the parent's peak
@@ -150,8 +154,9 @@ class Kept(plain):
         states.append(self)
 driver.ContactState = Kept
 before = peak_rss()
-pop = Population.sample(presets.R1, n, seed=1)
-ds = simulate(presets.R1, bench_path(), population=pop, **law_kw(law))
+with event.install_recorder("numba:compile") as compiles:  # a cache miss compiles here, and compiling costs memory
+    pop = Population.sample(presets.R1, n, seed=1)
+    ds = simulate(presets.R1, bench_path(), population=pop, **law_kw(law))
 st = states[-1]
 peak = peak_rss()  # before the accounting below copies the springs
 held = 0
@@ -167,6 +172,7 @@ if st.has_history:  # the springs in contact at the end (the largest contact cou
 print(json.dumps({"n": n, "law": law, "peak_rss": peak, "peak_rss_before": before,
                   "contacts_max": int(ds.n_contact.values.max()), "contacts_end": int(ds.n_contact.values[-1]),
                   "springs_in_contact_end": held, "state_bytes": int(st.nbytes), "population_bytes": int(pop.nbytes),
+                  "compiled_in_run": sorted({e.data["dispatcher"].py_func.__name__ for _, e in compiles.buffer}),
                   "stress": ds.stress.values.tolist()}))
 """
 
@@ -177,7 +183,11 @@ def memory_case(n, law):
     p = subprocess.run([sys.executable, "-c", MEMORY, str(n), law, here], capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(f"memory case n = {n}, law {law} failed:\n{p.stderr[-2000:]}")
-    return json.loads(p.stdout.strip().splitlines()[-1])
+    record = json.loads(p.stdout.strip().splitlines()[-1])
+    if record["compiled_in_run"]:  # e.g. the package's source edited while the benchmark ran
+        print(f"  warning: n = {n}, law {law} compiled {', '.join(record['compiled_in_run'])} in the measured "
+              "run: its peak counts the compiler's memory", flush=True)
+    return record
 
 
 def memory(sizes):

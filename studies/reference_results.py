@@ -98,7 +98,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_1b758b9.json", "cold_start_1b758b9.json", "cold_start_against_f609918.json",
            "whole_run_one_thread.json", "whole_run_against_89a13e8.json", "whole_run_d5d7191.json",
            "cold_start_891b0d2.json", "same_numbers_threads_awake.md", "same_numbers_threads_awake.json",
-           "crowded_a53ef35.json")
+           "crowded_a53ef35.json", "whole_run_against_18b1b3a.json", "whole_run_f0044eb.json",
+           "same_numbers_blocks.md", "same_numbers_blocks.json", "cold_start_f0044eb.json")
 
 
 def script_path(name: str) -> Path:
