@@ -105,16 +105,11 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
     blocks = done.size > 0
-    per = BLOCKS_PER_CHUNK if blocks else 1
     for kk0 in range(kk_lo, kk_hi):
         kk = claim(claims, kk0)
         if kk >= kk_hi:
             break
-        ic = ((kk // per) * stride) % n_chunks
-        lo, hi = ic * CHUNK, min(n_slots, (ic + 1) * CHUNK)
-        if blocks:
-            lo = min(hi, lo + (kk % per) * BLOCK)
-            hi = min(hi, lo + BLOCK)
+        ic, lo, hi = piece(kk, blocks, stride, n_chunks, n_slots)
         acc = np.zeros(N_COMMIT)
         work = stored = diss = events = 0.0
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
@@ -175,8 +170,29 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
         if not blocks:
             acc[C_WORK], acc[C_STORED], acc[C_DISS], acc[C_EVENTS] = work, stored, diss, events
             copy_into(partial[ic], acc)
-        elif fetch_add_acq_rel(done, ic, 1) == per - 1:  # the chunk's last block: its sums, in slot order
+        elif last_block(done, ic):
             slot_sums(by_slot, ic * CHUNK, min(n_slots, (ic + 1) * CHUNK), partial[ic])
+
+
+@kernel(inline="always")
+def piece(kk, blocks, stride, n_chunks, n):
+    """Piece kk of a commit of n contacts: (chunk ic, contacts lo .. hi).  Chunk by chunk, chunk kk in the strided
+    order (``stride`` 1: in order); by blocks, block kk % BLOCKS_PER_CHUNK of chunk kk // BLOCKS_PER_CHUNK (maybe
+    empty)."""
+    per = BLOCKS_PER_CHUNK if blocks else 1
+    ic = ((kk // per) * stride) % n_chunks
+    lo, hi = ic * CHUNK, min(n, (ic + 1) * CHUNK)
+    if blocks:
+        lo = min(hi, lo + (kk % per) * BLOCK)
+        hi = min(hi, lo + BLOCK)
+    return ic, lo, hi
+
+
+@kernel(inline="always")
+def last_block(done, ic):
+    """Count a block of chunk ic done; True for the chunk's last (its thread then sums the chunk, reading what the
+    other threads wrote: the count orders memory)."""
+    return fetch_add_acq_rel(done, ic, 1) == BLOCKS_PER_CHUNK - 1
 
 
 @kernel(inline="always")
@@ -248,16 +264,12 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     # compile the law's commit twice (once per argument type)
     fresh = m >= 0
     blocks = done.size > 0
-    per = BLOCKS_PER_CHUNK if blocks else 1
+    n_chunks = (m + CHUNK - 1) // CHUNK
     for kk0 in range(kk_lo, kk_hi):
         kk = claim(claims, kk0)
         if kk >= kk_hi:
             break
-        ic = kk // per
-        lo, hi = ic * CHUNK, min(m, (ic + 1) * CHUNK)
-        if blocks:
-            lo = min(hi, lo + (kk % per) * BLOCK)
-            hi = min(hi, lo + BLOCK)
+        ic, lo, hi = piece(kk, blocks, 1, n_chunks, m)
         acc = np.zeros(N_COMMIT)
         scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         for ii in range(lo, hi):
@@ -286,7 +298,7 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
             code[sl] = new
         if not blocks:
             copy_into(partial[ic], acc)
-        elif fetch_add_acq_rel(done, ic, 1) == per - 1:  # the chunk's last block: its sums, in order
+        elif last_block(done, ic):
             slot_sums(by_slot, ic * CHUNK, min(m, (ic + 1) * CHUNK), partial[ic])
 
 
