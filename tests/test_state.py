@@ -188,9 +188,14 @@ def test_a_commit_by_blocks_has_the_bits_of_a_commit_by_chunks(monkeypatch, poli
     """Where a few chunks of slots would spread unevenly over the threads, the threads claim blocks of slots and
     the thread that ends a chunk sums its contacts in slot order: the committed state and every sum of every
     commit are those of the commit chunk by chunk, bit for bit (with contacts lost, so slots freed, on the way)."""
+    def refuse(shape, dtype=np.float64):
+        raise MemoryError("refused (test)")
+
     runs = {}
-    for blocks in (True, False):
-        monkeypatch.setattr(state_module, "uneven", lambda n_chunks, blocks=blocks: blocks)
+    for blocks in (True, False, "refused"):  # "refused": by blocks where reserving memory is refused
+        if blocks == "refused":
+            monkeypatch.setattr(state_module, "reserve", refuse)
+        monkeypatch.setattr(state_module, "uneven", lambda n_chunks, blocks=blocks: bool(blocks))
         pop = Population.sample(R1, 30000, seed=5)
         hist = ContactState(pop, "mdr", policy, k=8)
         sums = []
@@ -200,12 +205,14 @@ def test_a_commit_by_blocks_has_the_bits_of_a_commit_by_chunks(monkeypatch, poli
             evaluate(pop, d, law="mdr", policy=policy, state=hist, workspace=ws)
             r = hist.commit(d, workspace=ws)
             sums.append([r.work, r.stored, r.dissipation, r.events, *r.transitions.ravel()])
-        assert (hist._by_slot_cols is not None) == blocks and hist.n_slots > 2 * 2048  # several chunks, by blocks
+        assert (hist._by_slot_cols is not None) == bool(blocks) and hist.n_slots > 2 * 2048  # several chunks
         runs[blocks] = hist.state_arrays(), np.array(sums)
-    (a, sa), (b, sb) = runs[True], runs[False]
-    assert sa[-1, 4 + 4 * 1 + 0] > 0  # some contacts in stick were lost in the last commit
-    assert np.array_equal(sa, sb)
-    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k], equal_nan=True) for k in a)
+    b, sb = runs[False]
+    assert sb[-1, 4 + 4 * 1 + 0] > 0  # some contacts in stick were lost in the last commit
+    for blocks in (True, "refused"):
+        a, sa = runs[blocks]
+        assert np.array_equal(sa, sb), blocks
+        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k], equal_nan=True) for k in a), blocks
 
 
 def test_reserved_slots_hold_a_turnover_of_nearly_every_asperity():

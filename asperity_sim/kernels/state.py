@@ -178,7 +178,7 @@ class ContactState:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_slot_chunks
             if uneven(n_slot_chunks):  # chunks that split unevenly: the threads claim blocks (the same sums)
-                by_slot, done = self._by_slot(), np.zeros(n_slot_chunks, dtype=np.int64)
+                by_slot, done = self._by_slot(self.n_slots), np.zeros(n_slot_chunks, dtype=np.int64)
                 pieces = n_slot_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
@@ -204,7 +204,7 @@ class ContactState:
             wait_for(kern["commit_fresh"])
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_new_chunks
             if n_new >= 2 * BLOCK and uneven(n_new_chunks):  # as the committed contacts' commit
-                by_slot, done = self._by_slot(), np.zeros(n_new_chunks, dtype=np.int64)
+                by_slot, done = self._by_slot(n_new), np.zeros(n_new_chunks, dtype=np.int64)
                 pieces = n_new_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_fresh"], pieces, (new_slots, self.asp, self.dn_c, self.code, *pop.arrays, delta,
                        self.delta_c, self.reference, p.r_o, p.k_e, self.consts, self.arrays, self.n_stored,
@@ -216,14 +216,15 @@ class ContactState:
         return CommitResult(work=scale * sums[C_WORK], stored=scale * sums[C_STORED], dissipation=scale * sums[C_DISS],
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
 
-    def _by_slot(self):
-        """The columns of a commit by blocks (N_BY_SLOT, as many as the slot arrays: reserved as they are, so only the
-        slots in use cost memory, and only runs with few slots commit by blocks)."""
-        if self._by_slot_cols is None or self._by_slot_cols.shape[1] < self.asp.size:
+    def _by_slot(self, n):
+        """Columns for n contacts of a commit by blocks (N_BY_SLOT, >= n): reserved for as many as the slot arrays
+        hold (only the columns written cost memory, and only commits of few chunks write them), or, where that
+        cannot be had, twice n."""
+        if self._by_slot_cols is None or self._by_slot_cols.shape[1] < n:
             try:
-                self._by_slot_cols = reserve((N_BY_SLOT, self.asp.size))
+                self._by_slot_cols = reserve((N_BY_SLOT, max(n, self.asp.size)))
             except MemoryError:
-                self._by_slot_cols = np.empty((N_BY_SLOT, self.asp.size))
+                self._by_slot_cols = np.empty((N_BY_SLOT, 2 * n))
         return self._by_slot_cols
 
     def _reserve(self, needed):
