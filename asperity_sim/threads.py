@@ -201,12 +201,16 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_WORKERS.clear)  # a forked child has none of its parent's threads
 
 
-def uneven(n_chunks: int) -> bool:
-    """True if ``n_chunks`` chunks of equal work spread unevenly over numba's threads: in the last round some thread
-    idles for more than 1/20 of the work (one chunk on two threads, three, five ...).  A kernel that can then hands
-    out smaller pieces, at a cost of about that much (:func:`asperity_sim.kernels.commit.commit_slots`)."""
+def uneven(n: int, size: int) -> bool:
+    """True if n items in chunks of ``size`` (the last maybe partial) spread unevenly over numba's threads: the
+    busiest thread, the chunks dealt out largest first, has more than 1.05 times its share n / threads (one chunk on
+    two threads, three, five ..., or two chunks of which the second is short).  A kernel that can then hands out
+    smaller pieces, at a cost of about that much (:func:`asperity_sim.kernels.commit.commit_slots`)."""
     threads = numba.get_num_threads()
-    return threads > 1 and -(-n_chunks // threads) * threads > 1.05 * n_chunks
+    full, rest = divmod(n, size)
+    rounds, extra = divmod(full, threads)
+    busiest = size * (rounds + 1) if extra else size * rounds + rest
+    return threads > 1 and busiest > 1.05 * n / threads
 
 
 def chunks_of(n: int, size: int) -> int:

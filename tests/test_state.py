@@ -195,7 +195,7 @@ def test_a_commit_by_blocks_has_the_bits_of_a_commit_by_chunks(monkeypatch, poli
     for blocks in (True, False, "refused"):  # "refused": by blocks where reserving memory is refused
         if blocks == "refused":
             monkeypatch.setattr(state_module, "reserve", refuse)
-        monkeypatch.setattr(state_module, "uneven", lambda n_chunks, blocks=blocks: bool(blocks))
+        monkeypatch.setattr(state_module, "by_blocks", lambda n, blocks=blocks: bool(blocks))
         pop = Population.sample(R1, 30000, seed=5)
         hist = ContactState(pop, "mdr", policy, k=8)
         sums = []

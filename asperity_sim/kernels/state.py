@@ -72,6 +72,12 @@ class CommitResult:
     transitions: np.ndarray  # (4, 4) asperity counts from state (row) to state (column)
 
 
+def by_blocks(n: int) -> bool:
+    """True if a commit of n contacts goes by blocks: at least two blocks' worth, in chunks that split unevenly over
+    the threads (:func:`asperity_sim.threads.uneven`; the same sums, :func:`~.commit.commit_slots`)."""
+    return n >= 2 * BLOCK and uneven(n, CHUNK)
+
+
 class ContactState:
     """The committed per-contact state of a population under one law and policy (module docstring)."""
 
@@ -177,7 +183,7 @@ class ContactState:
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_slot_chunks
-            if uneven(n_slot_chunks):  # chunks that split unevenly: the threads claim blocks (the same sums)
+            if by_blocks(self.n_slots):
                 by_slot, done = self._by_slot(self.n_slots), np.zeros(n_slot_chunks, dtype=np.int64)
                 pieces = n_slot_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
@@ -203,7 +209,7 @@ class ContactState:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])
             by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_new_chunks
-            if n_new >= 2 * BLOCK and uneven(n_new_chunks):  # as the committed contacts' commit
+            if by_blocks(n_new):
                 by_slot, done = self._by_slot(n_new), np.zeros(n_new_chunks, dtype=np.int64)
                 pieces = n_new_chunks * BLOCKS_PER_CHUNK
             run_calls((kern["commit_fresh"], pieces, (new_slots, self.asp, self.dn_c, self.code, *pop.arrays, delta,
