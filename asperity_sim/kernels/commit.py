@@ -105,6 +105,10 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
     blocks = done.size > 0
+    scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
+    geo = np.empty((N_GEO, BLOCK))
+    live = np.empty(BLOCK, dtype=np.bool_)
+    res = np.empty((5, BLOCK))
     for kk0 in range(kk_lo, kk_hi):
         kk = claim(claims, kk0)
         if kk >= kk_hi:
@@ -112,10 +116,6 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
         ic, lo, hi = piece(kk, blocks, stride, n_chunks, n_slots)
         acc = np.zeros(N_COMMIT)
         work = stored = diss = events = 0.0
-        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
-        geo = np.empty((N_GEO, BLOCK))
-        live = np.empty(BLOCK, dtype=np.bool_)
-        res = np.empty((5, BLOCK))
         for b0 in range(lo, hi, BLOCK):
             m = min(hi, b0 + BLOCK) - b0
             if BIRTH:
@@ -265,13 +265,13 @@ def commit_fresh(new_slots, asp, dn_c, code, r, R, u, cos_phi, sin_phi, delta, d
     fresh = m >= 0
     blocks = done.size > 0
     n_chunks = (m + CHUNK - 1) // CHUNK
+    scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
     for kk0 in range(kk_lo, kk_hi):
         kk = claim(claims, kk0)
         if kk >= kk_hi:
             break
         ic, lo, hi = piece(kk, blocks, 1, n_chunks, m)
         acc = np.zeros(N_COMMIT)
-        scratch = np.zeros((2, 2 * n_store))  # the law's scratch: two rows of twice the stored springs
         for ii in range(lo, hi):
             sl = new_slots[ii]
             j = asp[sl]
