@@ -237,8 +237,9 @@ def run_calls(*calls) -> None:
     threads = max(1, min(numba.get_num_threads(), max(call[1] for call in calls)))
     counters = np.zeros(LINE * len(calls), dtype=np.int64) if threads > 1 else None
     parts: list[list] = [[] for _ in range(threads)]
+    # the claims of the first call with chunks, if it is claimed: the caller waits for a worker's first claim
     first = next((c for c, call in enumerate(calls) if call[1] > 0), 0)
-    entered = counters[LINE * first:LINE * first + 1] if threads > 1 and calls[first][3:4] == (True,) else None
+    entered = counters[LINE * first:LINE * first + 1] if threads > 1 and calls[first][3:] == (True,) else None
     for c, (kernel_, n_chunks, args, *claimed) in enumerate(calls):
         if claimed and claimed[0]:
             claims = NO_CLAIMS if threads == 1 else counters[LINE * c:LINE * c + 1]

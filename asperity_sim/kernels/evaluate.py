@@ -272,8 +272,7 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
                   (state.flag, n_active, *pop.arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
                    state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
                    workspace.n_box, workspace.tan_box), True)]
-        if n_slot:  # one hand-off for both passes (they write different rows); the few costly chunks of the
-            # committed contacts are claimed first, and the many cheap ones of the search even out the threads
+        if n_slot:  # one hand-off for both passes (different rows); the costly chunks claimed first, the cheap even out
             calls.insert(0, (kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop.arrays, d,
                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
                           workspace.slot_rows(state.n_slots)), True))

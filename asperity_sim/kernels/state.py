@@ -182,10 +182,7 @@ class ContactState:
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
-            by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_slot_chunks
-            if by_blocks(self.n_slots):
-                by_slot, done = self._by_slot(self.n_slots), np.zeros(n_slot_chunks, dtype=np.int64)
-                pieces = n_slot_chunks * BLOCKS_PER_CHUNK
+            pieces, by_slot, done = self._pieces(self.n_slots)
             run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
                        self._partial, geo, by_slot, done), True))
@@ -208,10 +205,7 @@ class ContactState:
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
             wait_for(kern["commit_fresh"])
-            by_slot, done, pieces = EMPTY_BY_SLOT, EMPTY_COUNTS, n_new_chunks
-            if by_blocks(n_new):
-                by_slot, done = self._by_slot(n_new), np.zeros(n_new_chunks, dtype=np.int64)
-                pieces = n_new_chunks * BLOCKS_PER_CHUNK
+            pieces, by_slot, done = self._pieces(n_new)
             run_calls((kern["commit_fresh"], pieces, (new_slots, self.asp, self.dn_c, self.code, *pop.arrays, delta,
                        self.delta_c, self.reference, p.r_o, p.k_e, self.consts, self.arrays, self.n_stored,
                        self._partial, by_slot, done), True))
@@ -221,6 +215,15 @@ class ContactState:
         transitions[0, 0] = pop.n - transitions.sum()  # out of contact before and after
         return CommitResult(work=scale * sums[C_WORK], stored=scale * sums[C_STORED], dissipation=scale * sums[C_DISS],
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
+
+    def _pieces(self, n):
+        """How a commit of n contacts is handed to the threads: (pieces, by_slot, done) of
+        :func:`~asperity_sim.kernels.commit.commit_slots`, by blocks where :func:`by_blocks` says so, else chunk by
+        chunk (the same sums either way)."""
+        n_chunks = chunks_of(n, CHUNK)
+        if by_blocks(n):
+            return n_chunks * BLOCKS_PER_CHUNK, self._by_slot(n), np.zeros(n_chunks, dtype=np.int64)
+        return n_chunks, EMPTY_BY_SLOT, EMPTY_COUNTS
 
     def _by_slot(self, n):
         """Columns for n contacts of a commit by blocks (N_BY_SLOT, >= n): reserved for as many as the slot arrays
