@@ -9,12 +9,12 @@ committed state (:mod:`asperity_sim.kernels.state`), which it only reads.
 
 Which asperities are visited.  The population is sorted by height: only the first ``n_active``
 can touch (:func:`~asperity_sim.kernels.reach.bounds`).  A path-independent law sums them in one
-parallel pass, or on the calling thread when they fit ``SERIAL_CHUNKS`` chunks.  A history law
-makes two passes, handed to the threads together: the committed contacts, from their slots, and
-the contacts new in this trial; the second tests only those the workspace lists as able to touch
-in a box of displacements around the path (the same asperities in the same order as a full
-scan, so the same bits).  No fastmath anywhere: vector and scalar code give the same bits, and a
-result is the same whether its kernels were compiled or loaded from cache.
+parallel pass, or on the calling thread when they fit ``SERIAL_ACTIVE_CHUNKS`` chunks (or the
+population ``SERIAL_CHUNKS``).  A history law makes two passes, handed to the threads together:
+the committed contacts, from their slots, and the contacts new in this trial; the second tests
+only those the workspace lists as able to touch in a box of displacements around the path (the
+same asperities in the same order as a full scan, so the same bits).  No fastmath anywhere: vector
+and scalar code give the same bits, and a result is the same whether compiled or from cache.
 """
 
 from __future__ import annotations
@@ -53,6 +53,7 @@ from .layout import (
     O_STRESS,
     O_TANGENT,
     O_TH,
+    SERIAL_ACTIVE_CHUNKS,
     fits_serial,
     finish,
 )
@@ -244,11 +245,10 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     kern = kernels(law, birth=tb.size > 0)
     if law.path_independent:
-        # a population that fits the serial kernel: it finds its own bounds
-        serial = fits_serial(pop.n)
+        serial = fits_serial(pop.n)  # a small population: the serial kernel finds its own bounds
         if not serial:
             n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
-            serial = fits_serial(n_active)
+            serial = fits_serial(n_active, SERIAL_ACTIVE_CHUNKS)
         if serial:
             reduce = kern["reduce_serial"]
             wait_for(reduce)  # a first run: the helper may be compiling it (kernels.ahead)

@@ -22,12 +22,15 @@ BIRTH = False
 """The angle policy a template is compiled for (True: birth, False: follow): a placeholder bound per copy by
 :mod:`asperity_sim.kernels.specialise`.  numba prunes the branches of a constant before it inlines and types
 them, so a copy never compiles the other policy's loops."""
-SERIAL_CHUNKS = 16  # up to this many chunks (32768 asperities that can touch) a path-independent law runs serially
+SERIAL_CHUNKS = 8  # a population of up to this many chunks (16384 asperities) runs serially, batches of increments
+SERIAL_ACTIVE_CHUNKS = 2  # in a larger one, a trial whose asperities that can touch fit this many chunks runs serially
 
 
-def fits_serial(n: int) -> bool:
-    """True when n asperities that can touch fit the serial kernel of a path-independent law (SERIAL_CHUNKS chunks)."""
-    return n <= SERIAL_CHUNKS * CHUNK
+def fits_serial(n: int, chunks: int = SERIAL_CHUNKS) -> bool:
+    """True when n asperities fit ``chunks`` chunks: a population (default) or the asperities of one trial that can
+    touch (``SERIAL_ACTIVE_CHUNKS``) small enough for the serial kernel of a path-independent law.  The thresholds
+    are measured (docs/performance.md): below them a hand-off to the threads costs more than it saves."""
+    return n <= chunks * CHUNK
 
 
 # layout of one row of partial sums: forces (3), products f_i f_j (11, 22, 33, 12, 13, 23),
