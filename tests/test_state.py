@@ -65,13 +65,13 @@ def test_commit_after_a_trial_there_finds_the_same_fresh_contacts_as_a_full_sear
     for _ in range(12):
         d = full.delta_c + rng.normal([0.4, 0.3, 0.2], 0.3) * um
         evaluate(pop, d + 1e-3 * um, law="mdr", state=guided, workspace=ws)  # not where the commit goes
-        assert ws.fresh_spans(d, guided).size == 0
+        assert ws.fresh_contacts(d, guided) is None
         evaluate(pop, d, law="mdr", state=guided, workspace=ws)
-        assert ws.fresh_spans(d, guided).size > 0 and ws.slot_geometry(d, guided).size > 0
+        assert ws.fresh_contacts(d, guided) is not None and ws.slot_geometry(d, guided).size > 0
         before = full.n_contacts
         a, b = full.commit(d), guided.commit(d, workspace=ws)
         born += full.n_contacts - before
-        assert ws.fresh_spans(d, guided).size == 0 and ws.slot_geometry(d, guided).size == 0  # committed since
+        assert ws.fresh_contacts(d, guided) is None and ws.slot_geometry(d, guided).size == 0  # committed since
         assert (a.work, a.stored, a.dissipation) == (b.work, b.stored, b.dissipation)
         assert np.array_equal(a.transitions, b.transitions)
         for name, x in full.state_arrays().items():
@@ -79,28 +79,36 @@ def test_commit_after_a_trial_there_finds_the_same_fresh_contacts_as_a_full_sear
     assert born > 0  # contacts were born along the way
 
 
-def test_the_search_for_fresh_contacts_gives_the_same_state_here_and_on_the_threads(monkeypatch):
-    """A commit searches the spans of its trial on the calling thread when they are short (SEARCH_HERE), else on
-    the threads: the same contacts are born, into the same slots, with the same sums."""
-    pop, start = loaded_history(n=20000)
-    states, results = [], []
-    for here in (0, 10**9):
-        monkeypatch.setattr(state_module, "SEARCH_HERE", here)
-        hist = ContactState(pop, "mdr", k=16)
-        hist.restore(start.state_arrays())
-        ws = Workspace(pop.n)
-        rng = np.random.default_rng(5)
-        for _ in range(6):
-            d = hist.delta_c + rng.normal([0.4, 0.3, 0.2], 0.3) * um
-            evaluate(pop, d, law="mdr", state=hist, workspace=ws)
-            results.append(hist.commit(d, workspace=ws))
-        states.append(hist.state_arrays())
-    for a, b in zip(results[:6], results[6:]):
-        assert (a.work, a.stored, a.dissipation) == (b.work, b.stored, b.dissipation)
-        assert np.array_equal(a.transitions, b.transitions)
-    assert sum(r.transitions[0, 1:].sum() for r in results[:6]) > 0  # contacts were born
-    for name, x in states[0].items():
-        assert np.array_equal(states[1][name], x), name
+@pytest.mark.parametrize("index", [False, True])
+def test_a_trial_lists_the_fresh_contacts_a_search_finds(index):
+    """The fresh contacts a trial lists for its commit (with or without the workspace's index, from a new box
+    and from a box it made before) are those :func:`find_fresh` finds at the same displacement, in order."""
+    from asperity_sim.kernels.commit import find_fresh
+    from asperity_sim.kernels.layout import CHUNK
+    from asperity_sim.threads import chunks_of
+
+    pop, hist = loaded_history(n=20000)
+    p = pop.params
+    ws = Workspace(pop.n, index=index)
+    rng = np.random.default_rng(5)
+    found = 0
+    for _ in range(6):
+        d = hist.delta_c + rng.normal([0.4, 0.3, 0.2], 0.3) * um
+        for dd in (d + 0.1 * um, d):  # the second trial in the box the first one made (with the index)
+            evaluate(pop, dd, law="mdr", state=hist, workspace=ws)
+        fresh, n_fresh = ws.fresh_contacts(d, hist)
+        n_active, tan_max = state_module.bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, d, np.empty(0))
+        m = chunks_of(n_active, CHUNK)
+        want, n_want = np.zeros((m, CHUNK), np.int16), np.zeros(m, np.int64)
+        find_fresh(hist.flag, n_active, *pop.arrays, d, p.r_o, p.k_e, tan_max, want, n_want, 0, m)
+        assert np.array_equal(n_fresh[:m], n_want)
+        for ic in range(m):
+            got = fresh[ic, :n_want[ic]]
+            assert np.array_equal(got, want[ic, :n_want[ic]]) and np.all(np.diff(got) > 0), ic
+        found += int(n_want.sum())
+        hist.commit(d, workspace=ws)
+    assert found > 0  # contacts were born
+    assert ws.trials_by_index[2 if index else 0] > 0
 
 
 @pytest.mark.parametrize("trial_um", [(14.3, 3.5, 2.5), (13, 5, 3.1), (15, 6, 3), (12, 1, 6)])

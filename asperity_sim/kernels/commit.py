@@ -215,23 +215,19 @@ def slot_sums(by_slot, lo, hi, row):
 
 
 @kernel(nogil=True)
-def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, counts, spans, kk_lo, kk_hi):
-    """Flag (2) the asperities of chunks kk_lo .. kk_hi without a committed contact that touch at ``delta``; their
-    count per chunk.
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, fresh, n_fresh, kk_lo, kk_hi):
+    """The asperities of chunks kk_lo .. kk_hi below n_active without a committed contact that touch at ``delta``:
+    chunk ic's in ``fresh[ic]`` (offsets from ic CHUNK, ascending), their count in ``n_fresh[ic]``.
 
-    ``spans`` (chunks, 2), if not empty: where the trial's :func:`fresh_pass` at this same
-    displacement and committed state found them, per chunk; only those ranges are tested (the
-    same test, so the same asperities), else every asperity below n_active.
+    The test and the layout of the list a trial's :func:`~.history.fresh_pass` leaves: a commit
+    at the displacement of its last trial takes that list and needs no search.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    known = spans.shape[0] > 0
     for ic in range(kk_lo, kk_hi):
-        c = 0
-        lo, hi = ic * CHUNK, min(n_active, (ic + 1) * CHUNK)
-        if known:
-            lo, hi = spans[ic, 0], spans[ic, 1]
-        for j in range(lo, hi):
+        nf = 0
+        lo = ic * CHUNK
+        for j in range(lo, min(n_active, lo + CHUNK)):
             if flag[j]:
                 continue
             cp, sp = cos_phi[j], sin_phi[j]
@@ -243,9 +239,9 @@ def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_m
             th, _ = asperity_theta(u[j], inv_R, closure, k_e, 0.0)
             dn, _, _ = local_displacement(x, d2, d3, math.cos(th), math.sin(th), cp, sp)
             if dn > 0.0:
-                flag[j] = 2
-                c += 1
-        counts[ic] = c
+                fresh[ic, nf] = j - lo
+                nf += 1
+        n_fresh[ic] = nf
 
 
 @template(nogil=True, error_model="numpy")
@@ -336,20 +332,18 @@ def birth_angles_in(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_
 
 
 @kernel()
-def assign_slots(flag, counts, asp, n_slots, new_slots):
-    """Give each asperity flagged 2 (a new contact) a slot, lowest free slot first, in asperity order.
+def assign_slots(flag, fresh, n_fresh, asp, n_slots, new_slots):
+    """Give each fresh asperity (listed as :func:`find_fresh` lists them) a slot, lowest free slot first, in
+    asperity order, and flag it (1).
 
     Returns the new number of slots in use (free slots have asp = -1); ``new_slots`` receives
-    the slots given, in order.  Only chunks with a count are scanned.
+    the slots given, in order.
     """
     free = 0
     m = 0
-    for ic in range(counts.size):
-        if counts[ic] == 0:
-            continue
-        for j in range(ic * CHUNK, min(flag.size, (ic + 1) * CHUNK)):
-            if flag[j] != 2:
-                continue
+    for ic in range(n_fresh.size):
+        for c in range(n_fresh[ic]):
+            j = ic * CHUNK + fresh[ic, c]
             while free < n_slots and asp[free] >= 0:
                 free += 1
             sl = free

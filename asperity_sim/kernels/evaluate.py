@@ -36,7 +36,6 @@ from .layout import (
     EMPTY_COUNTS,
     EMPTY_INDEX,
     EMPTY_SLOT_GEO,
-    EMPTY_SPANS,
     N_ACC,
     N_OUT,
     N_SLOT_GEO,
@@ -105,9 +104,9 @@ class Evaluation:
 class Workspace:
     """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
 
-    A history law's trial also leaves here, for a commit at its displacement, where its fresh
-    contacts are (``spans``), the geometry of its committed contacts (``slot_geo``, policy
-    follow) and the displacement and committed state it was made at (``fresh_key``).  The
+    A history law's trial also leaves here, for a commit at its displacement, its fresh contacts
+    (``fresh``, ``n_fresh``: offsets per chunk), the geometry of its committed contacts (``slot_geo``,
+    policy follow) and the displacement and committed state it was made at (``fresh_key``).  The
     workspace also keeps an index of the asperities that may touch in a box of displacements
     around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
     only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
@@ -116,9 +115,10 @@ class Workspace:
     AHEAD = 8  # the index box reaches this many times the step from the committed displacement
 
     def __init__(self, n, index=True):
-        n_chunks = chunks_of(n, CHUNK)
+        self.n_chunks = n_chunks = chunks_of(n, CHUNK)
         self.partial = np.zeros((n_chunks, N_ACC))
-        self.spans = np.zeros((n_chunks, 2), dtype=np.int64)
+        self.fresh = reserve((n_chunks, CHUNK), np.int16)  # written only where contacts are born (memory.reserve)
+        self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
         self.fresh_key = None
         self.slot_geo = np.zeros((N_SLOT_GEO, 0))
         self.index = bool(index)
@@ -138,9 +138,9 @@ class Workspace:
         """True if the last trial was made at ``delta`` on the committed state ``state``."""
         return self.fresh_key == self.trial_key(delta, state)
 
-    def fresh_spans(self, delta, state):
-        """The spans of the last trial if it was made at ``delta`` on the committed state ``state``, else empty."""
-        return self.spans if self.made_at(delta, state) else EMPTY_SPANS
+    def fresh_contacts(self, delta, state):
+        """(fresh, n_fresh): the fresh contacts of the last trial if it was made at ``delta`` on ``state``, else None."""
+        return (self.fresh, self.n_fresh) if self.made_at(delta, state) else None
 
     def slot_geometry(self, delta, state):
         """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
@@ -150,7 +150,7 @@ class Workspace:
         """The slot geometry array, for as many slots as the population has asperities (reserved: only the slots
         in use cost memory, :func:`asperity_sim.memory.reserve`)."""
         if self.slot_geo.shape[1] < n_slots:
-            self.slot_geo = reserve((N_SLOT_GEO, max(self.spans.shape[0] * CHUNK, n_slots)))
+            self.slot_geo = reserve((N_SLOT_GEO, max(self.n_chunks * CHUNK, n_slots)))
         return self.slot_geo
 
     def fresh_index(self, pop, d, delta_c, n_active):
@@ -165,8 +165,8 @@ class Workspace:
         if not self.index:
             return 0
         if self.listed is None or self.listed.size < pop.n:
-            self.listed = reserve(self.spans.shape[0] * CHUNK, np.int32)  # written up to n_listed
-            self.n_listed = np.zeros(self.spans.shape[0], dtype=np.int64)
+            self.listed = reserve(self.n_chunks * CHUNK, np.int32)  # written up to n_listed
+            self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
             self.box_pop = None
         if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
                 and np.all(d <= self.box[1])):
@@ -270,8 +270,8 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         listed, n_listed = (workspace.listed, workspace.n_listed) if index else (EMPTY_INDEX, EMPTY_COUNTS)
         calls = [(kern["fresh_pass"], scan_chunks(n_active, index, workspace.n_box),
                   (state.flag, n_active, *pop.arrays, d, state.delta_c, state.reference, r_o, k_e, state.consts,
-                   state.arrays, tan_max, partial, workspace.spans, index, listed, n_listed, workspace.box,
-                   workspace.n_box, workspace.tan_box), True)]
+                   state.arrays, tan_max, partial, workspace.fresh, workspace.n_fresh, index, listed, n_listed,
+                   workspace.box, workspace.n_box, workspace.tan_box), True)]
         if n_slot:  # one hand-off for both passes (different rows); the costly chunks claimed first, the cheap even out
             calls.insert(0, (kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop.arrays, d,
                           state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],

@@ -154,13 +154,14 @@ def scan_chunks(n_active, index, n_box):
 
 @template(nogil=True, error_model="numpy")
 def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_ref, r_o, k_e, consts, arrays, tan_max,
-               partial, spans, index, listed, n_listed, box, n_box, tan_box, claims, kk_lo, kk_hi):
+               partial, fresh, n_fresh, index, listed, n_listed, box, n_box, tan_box, claims, kk_lo, kk_hi):
     """Rows of ``partial``: asperities without a committed contact that touch at the trial displacement.
 
     They take their follow angle (SPEC §3) and start from no history; committed contacts are
     skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
-    ``spans`` (chunks, 2): per chunk, the asperities [first, last] + 1 found touching ((0, 0) if
-    none), so that a commit at this displacement looks only there (:func:`find_fresh`).
+    The asperities found touching are listed, so that a commit at this displacement need not
+    look for them again: chunk ic's in ``fresh[ic]`` (offsets from ic CHUNK, ascending), their
+    count in ``n_fresh[ic]`` (the layout of :func:`~.commit.find_fresh`).
 
     ``index`` 0: every asperity below n_active is tested.  1: the same, and every asperity
     below ``n_box`` that may touch somewhere in ``box`` (2, 3; :func:`may_touch_within`, with
@@ -170,8 +171,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     touch in the same order, so the sums have the same bits whatever the index.  Chunks kk_lo .. kk_hi of
     the strided order over :func:`scan_chunks`, claimed (:func:`asperity_sim.threads.claim`).
     """
-    flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed = borrowed(
-        (flag, r, R, u, cos_phi, sin_phi, arrays, partial, spans, listed, n_listed))  # no reference counts
+    flag, r, R, u, cos_phi, sin_phi, arrays, partial, fresh, n_fresh, listed, n_listed = borrowed(
+        (flag, r, R, u, cos_phi, sin_phi, arrays, partial, fresh, n_fresh, listed, n_listed))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
@@ -188,7 +189,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
         lo = ic * CHUNK
         hi = min(n_active, lo + CHUNK)
         acc = np.zeros(N_ACC)
-        first, last = n_active, -1
+        nf = 0  # fresh contacts of this chunk
         if index == 2:
             n_it = n_listed[ic]
         else:
@@ -218,7 +219,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
             if dn <= 0.0:
                 continue
-            first, last = min(first, j), j
+            fresh[ic, nf] = j - lo
+            nf += 1
             dn_c = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
             dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)
             rho, dds, ddt = local_displacement(D0, D1, D2, ct, st, cp, sp)
@@ -229,7 +231,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             n_listed[ic] = m
         if ic < n_chunks:
             copy_into(partial[ic], acc)
-            spans[ic, 0], spans[ic, 1] = (first, last + 1) if last >= 0 else (0, 0)
+            n_fresh[ic] = nf
 
 
 @template(nogil=True, error_model="numpy")

@@ -139,7 +139,6 @@ N_BY_SLOT = 5
 
 
 EMPTY = np.empty(0)
-EMPTY_SPANS = np.zeros((0, 2), dtype=np.int64)
 EMPTY_INDEX = np.zeros(0, dtype=np.int32)
 EMPTY_SLOT_GEO = np.zeros((N_SLOT_GEO, 0))
 EMPTY_COUNTS = np.zeros(0, dtype=np.int64)

@@ -18,8 +18,9 @@ the one place that writes it, and the driver calls it only after an increment co
 Commit of a history law (each step a numba kernel over the slots or the population, no
 Python work per asperity): the committed contacts are committed by the law at the new
 displacement (energies, state transitions, lost contacts freed), the asperities that touch
-for the first time are flagged, given slots (free slots first, in asperity order) and
-committed from no history; then, under policy birth, the birth angles.
+for the first time (as the last trial at this displacement listed them, or found by a search)
+are given slots (free slots first, in asperity order) and committed from no history; then,
+under policy birth, the birth angles.
 """
 
 from __future__ import annotations
@@ -48,17 +49,11 @@ from .layout import (
     EMPTY_BY_SLOT,
     EMPTY_COUNTS,
     EMPTY_SLOT_GEO,
-    EMPTY_SPANS,
     N_BY_SLOT,
     N_COMMIT,
 )
 from .reach import bounds
 from .specialise import kernels
-
-
-SEARCH_HERE = 10_000
-"""Asperities in the spans of the last trial (about 0.1 ms of :func:`find_fresh`, as long as handing it to the
-threads takes) below which a commit searches for its fresh contacts on the calling thread."""
 
 
 @dataclass
@@ -102,7 +97,7 @@ class ContactState:
         if self.law.history is not None:
             self.flag = np.zeros(pop.n, dtype=np.uint8)
             self._allocate_slots(pop.n)
-            self._counts = np.zeros(0, dtype=np.int64)
+            self._fresh = self._n_fresh = None  # the fresh contacts of a commit without a trial to list them
             self._partial = np.zeros((0, N_COMMIT))
             self._by_slot_cols = None
 
@@ -159,9 +154,9 @@ class ContactState:
         result = None
         if self.has_history:
             n_active_h, tan_max = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, EMPTY)
-            spans = EMPTY_SPANS if workspace is None else workspace.fresh_spans(delta, self)
+            listed = None if workspace is None else workspace.fresh_contacts(delta, self)
             geo = EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
-            result = self._commit_history(delta, n_active_h, tan_max, tb, spans, geo)
+            result = self._commit_history(delta, n_active_h, tan_max, tb, listed, geo)
             self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:
@@ -170,15 +165,13 @@ class ContactState:
         self.delta_c = delta.copy()
         return result
 
-    def _commit_history(self, delta, n_active, tan_max, tb, spans, geo) -> CommitResult:
+    def _commit_history(self, delta, n_active, tan_max, tb, listed, geo) -> CommitResult:
         pop, p = self.pop, self.pop.params
         kern = kernels(self.law, birth=tb.size > 0)
         n_slot_chunks = chunks_of(self.n_slots, CHUNK)
         n_pop_chunks = chunks_of(n_active, CHUNK)
         if self._partial.shape[0] < n_slot_chunks + 1:
             self._partial = np.zeros((2 * n_slot_chunks + 16, N_COMMIT))
-        if self._counts.size < n_pop_chunks:
-            self._counts = np.zeros(n_pop_chunks, dtype=np.int64)
         sums = np.zeros(N_COMMIT)
         if self.n_slots:
             wait_for(kern["commit_slots"])  # a first run: the helper may be compiling it (kernels.ahead)
@@ -187,20 +180,19 @@ class ContactState:
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
                        self._partial, geo, by_slot, done), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
-        counts = self._counts[:n_pop_chunks]
-        search = (self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max, counts, spans)
-        if spans.shape[0] and int((spans[:n_pop_chunks, 1] - spans[:n_pop_chunks, 0]).sum()) < SEARCH_HERE:
-            find_fresh(*search, 0, n_pop_chunks)  # the trial said where: less work than a hand-off to the threads
-        else:
-            run_chunks(find_fresh, n_pop_chunks, *search)
-        n_new = int(counts.sum())
+        if listed is None:  # no trial here to say which contacts are born: look for them
+            listed = self._fresh_rows(n_pop_chunks)
+            run_chunks(find_fresh, n_pop_chunks, self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max,
+                       *listed)
+        fresh, n_fresh = listed[0], listed[1][:n_pop_chunks]
+        n_new = int(n_fresh.sum())
         if n_new:
             need = self.n_slots + n_new
             if need > self.asp.size:  # free slots are taken first: only the new contacts beyond them need room
                 need = self.n_slots + max(0, n_new - (self.n_slots - self.n_contacts))
             self._reserve(need)
             new_slots = np.empty(n_new, dtype=np.int64)
-            self.n_slots = int(assign_slots(self.flag, counts, self.asp, self.n_slots, new_slots))
+            self.n_slots = int(assign_slots(self.flag, fresh, n_fresh, self.asp, self.n_slots, new_slots))
             n_new_chunks = chunks_of(n_new, CHUNK)
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
@@ -215,6 +207,17 @@ class ContactState:
         transitions[0, 0] = pop.n - transitions.sum()  # out of contact before and after
         return CommitResult(work=scale * sums[C_WORK], stored=scale * sums[C_STORED], dissipation=scale * sums[C_DISS],
                             events=int(round(sums[C_EVENTS])), transitions=transitions)
+
+    def _fresh_rows(self, n_chunks):
+        """(fresh, n_fresh) of :func:`~.commit.find_fresh` for n_chunks chunks: reserved for every chunk of the
+        population (only the rows written cost memory), or, where that cannot be had, for n_chunks."""
+        if self._fresh is None or self._fresh.shape[0] < n_chunks:
+            try:
+                self._fresh = reserve((chunks_of(self.pop.n, CHUNK), CHUNK), np.int16)
+            except MemoryError:
+                self._fresh = np.zeros((n_chunks, CHUNK), dtype=np.int16)
+            self._n_fresh = np.zeros(self._fresh.shape[0], dtype=np.int64)
+        return self._fresh, self._n_fresh
 
     def _pieces(self, n):
         """How a commit of n contacts is handed to the threads: (pieces, by_slot, done) of
