@@ -1,8 +1,8 @@
 """The interface response at one displacement: stress, standard error, tangent and counts (SPEC §6).
 
-Owns the Python side of the reductions: :class:`Evaluation` (the result), :class:`Workspace`
-(preallocated partial rows and the trial's leftovers, so a Newton iteration allocates nothing)
-and :func:`evaluate`, the Monte Carlo sum of Eq. (23), sigma_i = N w sum_j f_ij, with its
+Owns the Python side of the reductions: :class:`Evaluation` (the result) and :func:`evaluate`
+(into a :class:`~asperity_sim.kernels.workspace.Workspace`: preallocated partial rows and the
+trial's leftovers, so a Newton iteration allocates nothing), the Monte Carlo sum of Eq. (23), sigma_i = N w sum_j f_ij, with its
 exact tangent T_ik = d sigma_i / d Delta_k, for any registered law.  It picks the kernels
 (:mod:`asperity_sim.kernels.specialise`) and passes them the population's arrays and the
 committed state (:mod:`asperity_sim.kernels.state`), which it only reads.
@@ -27,7 +27,6 @@ import numpy as np
 from .. import laws
 from ..checks import check_choice, check_delta
 from ..geometry import POLICIES
-from ..memory import reserve
 from ..sampling.population import Population
 from ..threads import chunks_of, run_calls, run_chunks
 from .layout import (
@@ -35,10 +34,7 @@ from .layout import (
     EMPTY,
     EMPTY_COUNTS,
     EMPTY_INDEX,
-    EMPTY_SLOT_GEO,
-    N_ACC,
     N_OUT,
-    N_SLOT_GEO,
     O_COV,
     O_AREA,
     O_AREA_COV,
@@ -62,6 +58,7 @@ from .history import scan_chunks
 from .reach import bounds
 from .specialise import kernels
 from .state import ContactState
+from .workspace import Workspace
 
 
 @dataclass(frozen=True)
@@ -99,96 +96,6 @@ class Evaluation:
     def at_contacts(self) -> np.ndarray:
         """The displacement the contacts see [m]: ``delta`` unless elastic interaction shifts it."""
         return self.delta if self.delta_contact is None else self.delta_contact
-
-
-class Workspace:
-    """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
-
-    A history law's trial also leaves here, for a commit at its displacement, its fresh contacts
-    (``fresh``, ``n_fresh``: offsets per chunk), the geometry of its committed contacts (``slot_geo``,
-    policy follow) and the displacement and committed state it was made at (``fresh_key``).  The
-    workspace also keeps an index of the asperities that may touch in a box of displacements
-    around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
-    only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
-    """
-
-    AHEAD = 8  # the index box reaches this many times the step from the committed displacement
-
-    def __init__(self, n, index=True):
-        self.n_chunks = n_chunks = chunks_of(n, CHUNK)
-        self.partial = np.zeros((n_chunks, N_ACC))
-        self.fresh = reserve((n_chunks, CHUNK), np.int16)  # written only where contacts are born (memory.reserve)
-        self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
-        self.fresh_key = None
-        self.slot_geo = np.zeros((N_SLOT_GEO, 0))
-        self.index = bool(index)
-        self.listed = self.n_listed = None  # allocated by the first history-law trial
-        self.box = np.zeros((2, 3))
-        self.box_pop = None  # the population the listed asperities belong to; None: no valid list
-        self.n_box, self.tan_box = 0, 0.0
-        self.trials_by_index = [0, 0, 0]  # trials that tested every asperity, built the list, used it
-        self.interaction_offset = 0.0  # Delta_c,1 - Delta_1 of the last evaluation under elastic interaction
-
-    @staticmethod
-    def trial_key(delta, state):
-        """What identifies a trial: the bits of its displacement and the committed state it was made on."""
-        return np.asarray(delta, dtype=float).tobytes(), id(state), state.serial
-
-    def made_at(self, delta, state):
-        """True if the last trial was made at ``delta`` on the committed state ``state``."""
-        return self.fresh_key == self.trial_key(delta, state)
-
-    def fresh_contacts(self, delta, state):
-        """(fresh, n_fresh): the fresh contacts of the last trial if it was made at ``delta`` on ``state``, else None."""
-        return (self.fresh, self.n_fresh) if self.made_at(delta, state) else None
-
-    def slot_geometry(self, delta, state):
-        """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
-        return self.slot_geo if self.made_at(delta, state) and state.theta_birth is None else EMPTY_SLOT_GEO
-
-    def slot_rows(self, n_slots):
-        """The slot geometry array, for as many slots as the population has asperities (reserved: only the slots
-        in use cost memory, :func:`asperity_sim.memory.reserve`)."""
-        if self.slot_geo.shape[1] < n_slots:
-            self.slot_geo = reserve((N_SLOT_GEO, max(self.n_chunks * CHUNK, n_slots)))
-        return self.slot_geo
-
-    def fresh_index(self, pop, d, delta_c, n_active):
-        """How a history-law trial at ``d`` finds its fresh contacts: ``index`` of :func:`fresh_pass` (0, 1, 2).
-
-        2 when the listed asperities were built for ``pop`` in a box that holds ``d``.  Else 1:
-        a new box, from the committed displacement ``delta_c`` to AHEAD steps d - delta_c
-        beyond it, widened by the largest component of the step in every direction (Newton
-        corrections, a turning path), with its own bounds (:func:`bounds` at the box corner of
-        largest closure and shear).  0 without an index, or for a trial at ``delta_c``.
-        """
-        if not self.index:
-            return 0
-        if self.listed is None or self.listed.size < pop.n:
-            self.listed = reserve(self.n_chunks * CHUNK, np.int32)  # written up to n_listed
-            self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
-            self.box_pop = None
-        if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
-                and np.all(d <= self.box[1])):
-            return 2
-        step = d - delta_c
-        pad = np.abs(step).max()
-        if not pad > 0.0:
-            return 0
-        ahead = delta_c + self.AHEAD * step
-        self.box[0] = np.minimum(delta_c, ahead) - pad
-        self.box[1] = np.maximum(delta_c, ahead) + pad
-        corner = np.array([self.box[1, 0], np.abs(self.box[:, 1]).max(), np.abs(self.box[:, 2]).max()])
-        r_o, k_e, _, _, _, beta, _ = pop.kernel_constants
-        self.n_box, self.tan_box = bounds(pop.r, pop.R_min, r_o, k_e, beta, corner, EMPTY)
-        self.box_pop = None  # until the list is written
-        return 1
-
-    def rows(self, m):
-        """At least m rows of partial sums (grown when a history law has more slot chunks)."""
-        if self.partial.shape[0] < m:
-            self.partial = np.zeros((m, N_ACC))
-        return self.partial
 
 
 def evaluate(pop, delta, law="paper", policy="follow", theta_birth=None, workspace=None, state=None) -> Evaluation:
