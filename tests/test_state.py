@@ -84,7 +84,7 @@ def test_a_trial_lists_the_fresh_contacts_a_search_finds(index):
     """The fresh contacts a trial lists for its commit (with or without the workspace's index, from a new box
     and from a box it made before) are those :func:`find_fresh` finds at the same displacement, in order."""
     from asperity_sim.kernels.commit import find_fresh
-    from asperity_sim.kernels.layout import CHUNK
+    from asperity_sim.kernels.layout import CHUNK, OFFSET
     from asperity_sim.threads import chunks_of
 
     pop, hist = loaded_history(n=20000)
@@ -99,7 +99,7 @@ def test_a_trial_lists_the_fresh_contacts_a_search_finds(index):
         fresh, n_fresh = ws.fresh_contacts(d, hist)
         n_active, tan_max = state_module.bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, d, np.empty(0))
         m = chunks_of(n_active, CHUNK)
-        want, n_want = np.zeros((m, CHUNK), np.int16), np.zeros(m, np.int64)
+        want, n_want = np.zeros((m, CHUNK), OFFSET), np.zeros(m, np.int64)
         find_fresh(hist.flag, n_active, *pop.arrays, d, p.r_o, p.k_e, tan_max, want, n_want, 0, m)
         assert np.array_equal(n_fresh[:m], n_want)
         for ic in range(m):

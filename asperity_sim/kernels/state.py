@@ -51,6 +51,7 @@ from .layout import (
     EMPTY_SLOT_GEO,
     N_BY_SLOT,
     N_COMMIT,
+    OFFSET,
 )
 from .reach import bounds
 from .specialise import kernels
@@ -213,9 +214,9 @@ class ContactState:
         population (only the rows written cost memory), or, where that cannot be had, for n_chunks."""
         if self._fresh is None or self._fresh.shape[0] < n_chunks:
             try:
-                self._fresh = reserve((chunks_of(self.pop.n, CHUNK), CHUNK), np.int16)
+                self._fresh = reserve((chunks_of(self.pop.n, CHUNK), CHUNK), OFFSET)
             except MemoryError:
-                self._fresh = np.zeros((n_chunks, CHUNK), dtype=np.int16)
+                self._fresh = np.zeros((n_chunks, CHUNK), dtype=OFFSET)
             self._n_fresh = np.zeros(self._fresh.shape[0], dtype=np.int64)
         return self._fresh, self._n_fresh
 

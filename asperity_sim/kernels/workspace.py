@@ -17,6 +17,7 @@ from .layout import (
     EMPTY_SLOT_GEO,
     N_ACC,
     N_SLOT_GEO,
+    OFFSET,
 )
 from .reach import bounds
 
@@ -37,7 +38,7 @@ class Workspace:
     def __init__(self, n, index=True):
         self.n_chunks = n_chunks = chunks_of(n, CHUNK)
         self.partial = np.zeros((n_chunks, N_ACC))
-        self.fresh = reserve((n_chunks, CHUNK), np.int16)  # written only where contacts are born (memory.reserve)
+        self.fresh = reserve((n_chunks, CHUNK), OFFSET)  # written only where contacts are born (memory.reserve)
         self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
         self.fresh_key = None
         self.slot_geo = np.zeros((N_SLOT_GEO, 0))
