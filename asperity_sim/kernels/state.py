@@ -158,6 +158,8 @@ class ContactState:
             listed = None if workspace is None else workspace.fresh_contacts(delta, self)
             geo = EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
             result = self._commit_history(delta, n_active_h, tan_max, tb, listed, geo)
+            if listed is not None:
+                workspace.consumed()
             self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..memory import reserve
+from ..memory import release, reserve
 from ..threads import chunks_of
 from .layout import (
     CHUNK,
@@ -62,6 +62,12 @@ class Workspace:
     def fresh_contacts(self, delta, state):
         """(fresh, n_fresh): the fresh contacts of the last trial if it was made at ``delta`` on ``state``, else None."""
         return (self.fresh, self.n_fresh) if self.made_at(delta, state) else None
+
+    def consumed(self):
+        """The fresh contacts were committed: their list's pages go back to the system (written again by the next
+        trials only in the chunks where contacts are born), so that a trial that found many contacts born, as the
+        first of a stage may, does not keep that memory for the rest of the run."""
+        release(self.fresh)
 
     def slot_geometry(self, delta, state):
         """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
