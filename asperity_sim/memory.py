@@ -1,4 +1,4 @@
-"""Arrays whose memory exists only where they are written: :func:`reserve`, and :func:`release`.
+"""Arrays whose memory exists only where they are written: :func:`reserve`.
 
 A store that grows with the contacts of a run (slots, springs) is reserved once for the most
 it can hold, as an anonymous private memory map: the operating system gives a page the first
@@ -30,15 +30,3 @@ def reserve(shape, dtype=np.float64) -> np.ndarray:
     except (OSError, ValueError, AttributeError):  # no room to map it, or no anonymous maps here
         return np.zeros(shape, dtype=dtype)
     return np.frombuffer(buf, dtype=dtype, count=n // dtype.itemsize).reshape(shape)
-
-
-def release(a: np.ndarray) -> None:
-    """Give back the pages of an array made by :func:`reserve` (they read as zeros again, and cost no memory until
-    written); an ordinary array is left as it is."""
-    base = a
-    while isinstance(base, np.ndarray) and base.base is not None:
-        base = base.base
-    if isinstance(base, memoryview):
-        base = base.obj
-    if isinstance(base, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
-        base.madvise(mmap.MADV_DONTNEED)

@@ -7,7 +7,7 @@ import numba
 import numpy as np
 import pytest
 
-from asperity_sim.memory import SMALL, release, reserve
+from asperity_sim.memory import SMALL, reserve
 
 
 def resident_bytes():
@@ -54,23 +54,3 @@ def test_only_the_rows_written_take_memory():
     written = resident_bytes()
     assert reserved - before < 8 * 2**20
     assert 4 * 2**20 < written - reserved < 12 * 2**20
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="resident memory read from /proc")
-def test_a_released_array_reads_zeros_and_gives_its_pages_back():
-    a = reserve((2_000, 2048), np.int16)  # 8 MB reserved
-    a[:1_000] = 7  # 4 MB written
-    written = resident_bytes()
-    release(a)
-    assert written - resident_bytes() > 3 * 2**20
-    assert not a.any()
-    a[5, 3] = 2  # and it is written again as before
-    assert a.sum() == 2
-
-
-def test_releasing_an_ordinary_array_leaves_it():
-    a = reserve((10,))  # small: an ordinary array
-    a[:] = 1.0
-    release(a)
-    release(np.ones(3))
-    assert np.all(a == 1.0)

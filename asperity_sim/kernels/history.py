@@ -161,7 +161,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     skipped by their flag, and the rest by :func:`may_touch_follow` before any trigonometry.
     The asperities found touching are listed, so that a commit at this displacement need not
     look for them again: chunk ic's in ``fresh[ic]`` (offsets from ic CHUNK, ascending), their
-    count in ``n_fresh[ic]`` (the layout of :func:`~.commit.find_fresh`).
+    count in ``n_fresh[ic]`` (the layout of :func:`~.commit.find_fresh`); a chunk with more than
+    its row holds lists only the first (its count says so, and a commit searches again).
 
     ``index`` 0: every asperity below n_active is tested.  1: the same, and every asperity
     below ``n_box`` that may touch somewhere in ``box`` (2, 3; :func:`may_touch_within`, with
@@ -219,7 +220,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             dn, ds, dt = local_displacement(x, d2, d3, ct, st, cp, sp)
             if dn <= 0.0:
                 continue
-            fresh[ic, nf] = j - lo
+            if nf < fresh.shape[1]:
+                fresh[ic, nf] = j - lo
             nf += 1
             dn_c = committed_overlap(j, r, u, inv_R, cp, sp, delta_c, r_o, k_e)
             dn_ref = committed_overlap(j, r, u, inv_R, cp, sp, delta_ref, r_o, k_e)

@@ -19,6 +19,7 @@ from ..jit import kernel
 
 CHUNK = 2048
 OFFSET = np.int16  # an asperity's place in its chunk (lists of contacts born): CHUNK must stay below 2**15
+FRESH_ROW = 512  # a trial lists up to this many contacts born per chunk (beyond: the commit searches the chunk)
 BIRTH = False
 """The angle policy a template is compiled for (True: birth, False: follow): a placeholder bound per copy by
 :mod:`asperity_sim.kernels.specialise`.  numba prunes the branches of a constant before it inlines and types

@@ -158,8 +158,6 @@ class ContactState:
             listed = None if workspace is None else workspace.fresh_contacts(delta, self)
             geo = EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
             result = self._commit_history(delta, n_active_h, tan_max, tb, listed, geo)
-            if listed is not None:
-                workspace.consumed()
             self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:
@@ -183,7 +181,9 @@ class ContactState:
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
                        self._partial, geo, by_slot, done), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
-        if listed is None:  # no trial here to say which contacts are born: look for them
+        if listed is not None and int(listed[1][:n_pop_chunks].max(initial=0)) > listed[0].shape[1]:
+            listed = None  # a chunk had more contacts born than its row of the list holds
+        if listed is None:  # no trial here to list the contacts born, or not all of them: look for them
             listed = self._fresh_rows(n_pop_chunks)
             run_chunks(find_fresh, n_pop_chunks, self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max,
                        *listed)

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..memory import release, reserve
+from ..memory import reserve
 from ..threads import chunks_of
 from .layout import (
     CHUNK,
     EMPTY,
+    FRESH_ROW,
     EMPTY_SLOT_GEO,
     N_ACC,
     N_SLOT_GEO,
@@ -38,7 +39,7 @@ class Workspace:
     def __init__(self, n, index=True):
         self.n_chunks = n_chunks = chunks_of(n, CHUNK)
         self.partial = np.zeros((n_chunks, N_ACC))
-        self.fresh = reserve((n_chunks, CHUNK), OFFSET)  # written only where contacts are born (memory.reserve)
+        self.fresh = reserve((n_chunks, FRESH_ROW), OFFSET)  # written only where contacts are born (memory.reserve)
         self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
         self.fresh_key = None
         self.slot_geo = np.zeros((N_SLOT_GEO, 0))
@@ -62,12 +63,6 @@ class Workspace:
     def fresh_contacts(self, delta, state):
         """(fresh, n_fresh): the fresh contacts of the last trial if it was made at ``delta`` on ``state``, else None."""
         return (self.fresh, self.n_fresh) if self.made_at(delta, state) else None
-
-    def consumed(self):
-        """The fresh contacts were committed: their list's pages go back to the system (written again by the next
-        trials only in the chunks where contacts are born), so that a trial that found many contacts born, as the
-        first of a stage may, does not keep that memory for the rest of the run."""
-        release(self.fresh)
 
     def slot_geometry(self, delta, state):
         """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
