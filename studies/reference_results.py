@@ -99,7 +99,11 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_one_thread.json", "whole_run_against_89a13e8.json", "whole_run_d5d7191.json",
            "cold_start_891b0d2.json", "same_numbers_threads_awake.md", "same_numbers_threads_awake.json",
            "crowded_a53ef35.json", "whole_run_against_18b1b3a.json", "whole_run_f0044eb.json",
-           "same_numbers_blocks.md", "same_numbers_blocks.json", "cold_start_f0044eb.json")
+           "same_numbers_blocks.md", "same_numbers_blocks.json", "cold_start_f0044eb.json",
+           "whole_run_against_acd6ca3.json", "whole_run_against_7d2a8ea.json",
+           "whole_run_against_acd6ca3_7111d38.json", "cold_start_7111d38.json", "whole_run_798b67c.json",
+           "whole_run_against_7d2a8ea_798b67c.json", "same_numbers_lists.md", "same_numbers_lists.json",
+           "same_numbers_lists_exact.md", "same_numbers_lists_exact.json")
 
 
 def script_path(name: str) -> Path:
