@@ -14,8 +14,8 @@ from ..threads import chunks_of
 from .layout import (
     CHUNK,
     EMPTY,
-    FRESH_ROW,
     EMPTY_SLOT_GEO,
+    FRESH_ROW,
     N_ACC,
     N_SLOT_GEO,
     OFFSET,
