@@ -100,7 +100,7 @@ def test_a_trial_lists_the_fresh_contacts_a_search_finds(index):
         n_active, tan_max = state_module.bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, d, np.empty(0))
         m = chunks_of(n_active, CHUNK)
         want, n_want = np.zeros((m, CHUNK), OFFSET), np.zeros(m, np.int64)
-        find_fresh(hist.flag, n_active, *pop.arrays, d, p.r_o, p.k_e, tan_max, want, n_want, np.zeros(0, np.int64), 0, m)
+        find_fresh(hist.flag, n_active, *pop.arrays, d, p.r_o, p.k_e, tan_max, want, n_want, 0, m)
         assert np.array_equal(n_fresh[:m], n_want)
         for ic in range(m):
             k = min(n_want[ic], fresh.shape[1])  # a row holds the first FRESH_ROW (the count says if there were more)

@@ -215,20 +215,16 @@ def slot_sums(by_slot, lo, hi, row):
 
 
 @kernel(nogil=True)
-def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, fresh, n_fresh, chunks, kk_lo,
-               kk_hi):
-    """The asperities below n_active without a committed contact that touch at ``delta``, of chunks kk_lo .. kk_hi
-    (or of chunks ``chunks[kk_lo:kk_hi]``, if not empty): chunk ic's in ``fresh[ic]`` (offsets from ic CHUNK,
-    ascending), their count in ``n_fresh[ic]``.
+def find_fresh(flag, n_active, r, R, u, cos_phi, sin_phi, delta, r_o, k_e, tan_max, fresh, n_fresh, kk_lo, kk_hi):
+    """The asperities of chunks kk_lo .. kk_hi below n_active without a committed contact that touch at ``delta``:
+    chunk ic's in ``fresh[ic]`` (offsets from ic CHUNK, ascending), their count in ``n_fresh[ic]``.
 
     The test and the layout of the list a trial's :func:`~.history.fresh_pass` leaves: a commit
-    at the displacement of its last trial takes that list and searches only the chunks whose
-    row it filled.
+    at the displacement of its last trial takes that list and needs no search.
     """
     d1, d2, d3 = delta[0], delta[1], delta[2]
     closure, _ = closure_and_slope(r_o, d1)
-    for kk in range(kk_lo, kk_hi):
-        ic = chunks[kk] if chunks.size else kk
+    for ic in range(kk_lo, kk_hi):
         nf = 0
         lo = ic * CHUNK
         for j in range(lo, min(n_active, lo + CHUNK)):
@@ -336,9 +332,8 @@ def birth_angles_in(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, theta_
 
 
 @kernel()
-def assign_slots(flag, fresh, full, n_fresh, asp, n_slots, new_slots):
-    """Give each fresh asperity (listed as :func:`find_fresh` lists them: chunk ic's in ``fresh[ic]``, or in
-    ``full[ic]`` where their count is more than a row of ``fresh`` holds) a slot, lowest free slot first, in
+def assign_slots(flag, fresh, n_fresh, asp, n_slots, new_slots):
+    """Give each fresh asperity (listed as :func:`find_fresh` lists them) a slot, lowest free slot first, in
     asperity order, and flag it (1).
 
     Returns the new number of slots in use (free slots have asp = -1); ``new_slots`` receives
@@ -347,9 +342,8 @@ def assign_slots(flag, fresh, full, n_fresh, asp, n_slots, new_slots):
     free = 0
     m = 0
     for ic in range(n_fresh.size):
-        row = fresh[ic] if n_fresh[ic] <= fresh.shape[1] else full[ic]
         for c in range(n_fresh[ic]):
-            j = ic * CHUNK + row[c]
+            j = ic * CHUNK + fresh[ic, c]
             while free < n_slots and asp[free] >= 0:
                 free += 1
             sl = free

@@ -181,19 +181,13 @@ class ContactState:
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
                        self._partial, geo, by_slot, done), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
-        search = (self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max)
-        if listed is None:  # no trial here to list the contacts born: look for them in every chunk
-            full, n_fresh = self._fresh_rows(n_pop_chunks)
-            fresh = full
-            run_chunks(find_fresh, n_pop_chunks, *search, full, n_fresh, EMPTY_COUNTS)
-        else:  # the trial's list; the chunks with more contacts born than a row of it holds are searched
-            fresh, n_fresh = listed
-            full = fresh
-            over = np.flatnonzero(n_fresh[:n_pop_chunks] > fresh.shape[1])
-            if over.size:
-                full = self._fresh_rows(n_pop_chunks)[0]
-                run_chunks(find_fresh, over.size, *search, full, n_fresh, over)
-        n_fresh = n_fresh[:n_pop_chunks]
+        if listed is not None and int(listed[1][:n_pop_chunks].max(initial=0)) > listed[0].shape[1]:
+            listed = None  # a chunk had more contacts born than its row of the list holds
+        if listed is None:  # no trial here to list the contacts born, or not all of them: look for them
+            listed = self._fresh_rows(n_pop_chunks)
+            run_chunks(find_fresh, n_pop_chunks, self.flag, n_active, *pop.arrays, delta, p.r_o, p.k_e, tan_max,
+                       *listed)
+        fresh, n_fresh = listed[0], listed[1][:n_pop_chunks]
         n_new = int(n_fresh.sum())
         if n_new:
             need = self.n_slots + n_new
@@ -201,7 +195,7 @@ class ContactState:
                 need = self.n_slots + max(0, n_new - (self.n_slots - self.n_contacts))
             self._reserve(need)
             new_slots = np.empty(n_new, dtype=np.int64)
-            self.n_slots = int(assign_slots(self.flag, fresh, full, n_fresh, self.asp, self.n_slots, new_slots))
+            self.n_slots = int(assign_slots(self.flag, fresh, n_fresh, self.asp, self.n_slots, new_slots))
             n_new_chunks = chunks_of(n_new, CHUNK)
             if self._partial.shape[0] < n_new_chunks:
                 self._partial = np.zeros((n_new_chunks + 16, N_COMMIT))
