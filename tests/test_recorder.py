@@ -71,3 +71,16 @@ def test_dataset_from_the_cached_template_is_the_constructors_and_shares_nothing
     assert second["control"].attrs["flag_meanings"] == "displacement stress"
     assert second.attrs == {"title": "b"}
     np.testing.assert_array_equal(second["stress"].values, data["stress"])
+
+
+def test_stage_names_label_each_step_and_a_stage_beyond_the_names_is_refused():
+    rng = np.random.default_rng(2)
+    rec = Recorder(4)
+    for i, row in enumerate(rows(3, rng)):
+        row["stage"] = np.array(i, dtype=STEP_VARIABLES["stage"].dtype)
+        rec.append(**row)
+    ds = rec.to_dataset({}, stage_names=["load", "shear"])
+    assert list(ds["stage_name"].values) == ["initial state", "load", "shear"]
+    assert list(ds.data_vars)[-1] == "stage_name"
+    with pytest.raises(ValueError, match=r"stage index 2 is out of range \(valid range: 0 to 1\)"):
+        rec.to_dataset({}, stage_names=["load"])

@@ -86,24 +86,28 @@ class Recorder:
         order) adds ``stage_name``, each step's stage name."""
         n = self.size
         data = {name: self._buf[name][:n].copy() for name in self._vars}
+        label = LABEL_VARIABLES["stage_name"]  # the last variable, when the stages have names
+        names = None if stage_names is None else stage_name_values(data["stage"], stage_names)
         if self.snapshots and population is not None:
-            ds = _build(self._vars, data, _snapshot_vars(self.snapshots, population))
+            extra = _snapshot_vars(self.snapshots, population)
+            if names is not None:
+                extra["stage_name"] = (label.dims, names, _attrs(label))
+            ds = _build(self._vars, data, extra)
         else:  # the common case: a copy of the cached empty Dataset of this shape, with the data swapped in
-            ds = _template(tuple(self._vars.items()), n).copy(deep=False, data=data)
-        if stage_names is not None:
-            add_stage_names(ds, stage_names)
+            variables = self._vars if names is None else {**self._vars, "stage_name": label}
+            if names is not None:
+                data["stage_name"] = names
+            ds = _template(tuple(variables.items()), n).copy(deep=False, data=data)
         ds.attrs = attrs
         return ds
 
 
-def add_stage_names(ds, stage_names) -> None:
-    """Add ``stage_name`` (step): the name of each step's stage (``stage`` 0: the initial state)."""
+def stage_name_values(stage, stage_names) -> np.ndarray:
+    """``stage_name`` (step): the name of each step's stage (``stage`` 0: the initial state)."""
     names = np.array([INITIAL_STAGE_NAME, *(str(s) for s in stage_names)], dtype=object)
-    stage = ds["stage"].values
     if stage.size and (stage.min() < 0 or stage.max() >= names.size):
         raise ValueError(f"stage index {int(stage.max())} is out of range (valid range: 0 to {names.size - 1})")
-    var = LABEL_VARIABLES["stage_name"]
-    ds["stage_name"] = (var.dims, names[stage].astype(str), _attrs(var))
+    return names[stage].astype(str)
 
 
 def link_standard_errors(ds) -> xr.Dataset:
