@@ -86,18 +86,15 @@ class Recorder:
         order) adds ``stage_name``, each step's stage name."""
         n = self.size
         data = {name: self._buf[name][:n].copy() for name in self._vars}
-        label = LABEL_VARIABLES["stage_name"]  # the last variable, when the stages have names
         names = None if stage_names is None else stage_name_values(data["stage"], stage_names)
         if self.snapshots and population is not None:
-            extra = _snapshot_vars(self.snapshots, population)
+            ds = _build(self._vars, data, _snapshot_vars(self.snapshots, population))
             if names is not None:
-                extra["stage_name"] = (label.dims, names, _attrs(label))
-            ds = _build(self._vars, data, extra)
+                _add_stage_name(ds, names)
         else:  # the common case: a copy of the cached empty Dataset of this shape, with the data swapped in
-            variables = self._vars if names is None else {**self._vars, "stage_name": label}
             if names is not None:
                 data["stage_name"] = names
-            ds = _template(tuple(variables.items()), n).copy(deep=False, data=data)
+            ds = _template(tuple(self._vars.items()), n, names is not None).copy(deep=False, data=data)
         ds.attrs = attrs
         return ds
 
@@ -137,13 +134,23 @@ def _build(variables, data, extra=None) -> xr.Dataset:
 
 
 @functools.lru_cache(maxsize=32)
-def _template(variables: tuple, n: int) -> xr.Dataset:
-    """A Dataset of ``n`` steps to copy with new data: the constructor's checks and index building cost
-    about 1 ms, several times a small run's own work.  Never handed out itself; a shallow copy has its
-    own attribute dicts (global and per variable), so what a caller changes stays in its copy."""
+def _template(variables: tuple, n: int, labelled: bool) -> xr.Dataset:
+    """A Dataset of ``n`` steps to copy with new data (``labelled``: with ``stage_name``): the constructor's checks
+    and index building cost about 1 ms, several times a small run's own work.  Never handed out itself; a
+    shallow copy has its own attribute dicts (global and per variable), so what a caller changes stays in its
+    copy."""
     variables = dict(variables)
-    return _build(variables, {name: np.zeros((n,) + tuple(_SIZES[d] for d in var.dims[1:]), dtype=var.dtype)
-                              for name, var in variables.items()})
+    ds = _build(variables, {name: np.zeros((n,) + tuple(_SIZES[d] for d in var.dims[1:]), dtype=var.dtype)
+                            for name, var in variables.items()})
+    if labelled:
+        _add_stage_name(ds, np.zeros(n, dtype="U1"))
+    return ds
+
+
+def _add_stage_name(ds, names) -> None:
+    """``stage_name`` as the last variable of ``ds`` (after the coordinates, where files have always had it)."""
+    var = LABEL_VARIABLES["stage_name"]
+    ds["stage_name"] = (var.dims, names, _attrs(var))
 
 
 def _attrs(var):
