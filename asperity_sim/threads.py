@@ -79,6 +79,8 @@ class _Workers:
 
     def __init__(self, n: int):
         self.flags = np.zeros(LINE * 2 * (n + 1), dtype=np.int64)
+        self.mail = LINE * 2 * np.arange(1, n + 1, dtype=np.int64)  # worker t's mailbox: flags[mail[t - 1]]
+        self.epoch = np.zeros(1, dtype=np.int64)
         self.parts: list = [None] * (n + 1)
         self.errors: list = [None] * (n + 1)
         self.asleep = [False] * (n + 1)
@@ -140,8 +142,14 @@ class _Workers:
                 self.errors[t], self.parts[t] = None, part
                 posted.append((t, epoch))
         if entered is not None and posted and self.entry_polls and not any(self.asleep[t] for t, _ in posted):
-            post_each_then_wait(self.flags, np.array([LINE * 2 * t for t, _ in posted], dtype=np.int64),
-                                np.array([epoch for _, epoch in posted], dtype=np.int64), entered, 0, self.entry_polls)
+            if len(posted) == 1:  # two threads: the worker's mailbox and its epoch in arrays kept for it
+                t, epoch = posted[0]
+                self.epoch[0] = epoch
+                mail, epochs = self.mail[t - 1:t], self.epoch
+            else:
+                mail = np.array([LINE * 2 * t for t, _ in posted], dtype=np.int64)
+                epochs = np.array([epoch for _, epoch in posted], dtype=np.int64)
+            post_each_then_wait(self.flags, mail, epochs, entered, 0, self.entry_polls)
         else:
             for t, epoch in posted:
                 self.flags[LINE * 2 * t] = epoch
@@ -191,6 +199,8 @@ _LOCK = threading.Lock()
 
 def _workers() -> _Workers:
     """The process's workers (started at the first parallel call; the caller is the other thread)."""
+    if _WORKERS:
+        return _WORKERS[0]
     with _LOCK:
         if not _WORKERS:
             _WORKERS.append(_Workers(max(1, numba.config.NUMBA_NUM_THREADS - 1)))
@@ -234,11 +244,12 @@ def run_calls(*calls) -> None:
     thread that gets to them first.  A call made while another thread's call holds the workers runs
     on its own thread.
     """
-    threads = max(1, min(numba.get_num_threads(), max(call[1] for call in calls)))
+    most = calls[0][1] if len(calls) == 1 else max(call[1] for call in calls)
+    threads = max(1, min(numba.get_num_threads(), most))
     counters = np.zeros(LINE * len(calls), dtype=np.int64) if threads > 1 else None
     parts: list[list] = [[] for _ in range(threads)]
     # the claims of the first call with chunks, if it is claimed: the caller waits for a worker's first claim
-    first = next((c for c, call in enumerate(calls) if call[1] > 0), 0)
+    first = 0 if calls[0][1] > 0 else next((c for c, call in enumerate(calls) if call[1] > 0), 0)
     entered = counters[LINE * first:LINE * first + 1] if threads > 1 and calls[first][3:] == (True,) else None
     for c, (kernel_, n_chunks, args, *claimed) in enumerate(calls):
         if claimed and claimed[0]:

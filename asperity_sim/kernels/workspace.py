@@ -90,9 +90,11 @@ class Workspace:
             self.listed = reserve(self.n_chunks * CHUNK, np.int32)  # written up to n_listed
             self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
             self.box_pop = None
-        if (self.box_pop is pop and n_active <= self.n_box and np.all(self.box[0] <= d)
-                and np.all(d <= self.box[1])):
-            return 2
+        if self.box_pop is pop and n_active <= self.n_box:
+            (lo1, lo2, lo3), (hi1, hi2, hi3) = self.box.tolist()
+            d1, d2, d3 = d.tolist()  # Python floats: numpy costs more on 3 values, at every trial
+            if lo1 <= d1 <= hi1 and lo2 <= d2 <= hi2 and lo3 <= d3 <= hi3:
+                return 2
         step = d - delta_c
         pad = np.abs(step).max()
         if not pad > 0.0:
