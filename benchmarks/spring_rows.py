@@ -5,7 +5,7 @@ contact born under stress control outgrows the k springs it was spaced for. This
 stress-controlled normal stage of the history benchmark's path (``whole_run.bench_path``), where
 the rows fill, reads the committed state from the run's own checkpoint at the stage's end, and
 counts each contact's springs in contact N from its committed overlap and spacing, as the kernels
-count them (:func:`asperity_sim.laws.mdr.springs.springs_below`). A contact's row must hold N + 1
+count them (``whole_run.springs_in_contact``). A contact's row must hold N + 1
 springs (the one beyond the edge), at most the 2k stored.
 
 It reports the distribution of N and, for rows rounded up to g springs with nothing else (no
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import tempfile
 import time
@@ -30,16 +29,15 @@ from pathlib import Path
 import numpy as np
 
 from asperity_sim import Population, paths, presets, simulate
-from asperity_sim.laws.mdr.springs import springs_below
 from asperity_sim.solve import run_checkpoint
 
-from whole_run import K, bench_path
+from whole_run import K, bench_path, springs_in_contact
 
 ROOT = Path(__file__).resolve().parent.parent
 GRANULARITIES = (1, 2, 4, 8)
 
 
-def springs_in_contact(n: int, k: int = K):
+def normal_stage_springs(n: int, k: int = K):
     """(N per contact, springs stored per contact) at the end of the normal stage of the benchmark path, n asperities."""
     normal = bench_path().stages[0]
     path = paths.LoadPath((normal,), name="normal stage of the history benchmark")
@@ -48,12 +46,9 @@ def springs_in_contact(n: int, k: int = K):
         ckpt = Path(tmp) / "normal.ckpt"
         simulate(presets.R1, path, population=pop, law="mdr", k=k, checkpoint=ckpt)  # written at the stage's end
         arrays = run_checkpoint.read(ckpt).arrays
-    asp, dn_c, w, h = arrays["state_asp"], arrays["state_dn_c"], arrays["state_law0"], arrays["state_law1"]
+    asp, w = arrays["state_asp"], arrays["state_law0"]
     live = asp >= 0
-    c = h[live] ** 2 / pop.R[asp[live]]
-    dn = dn_c[live]
-    N = np.array([springs_below(d, ci, math.sqrt(d / ci) if d > 0.0 else 0.0) for d, ci in zip(dn, c)])
-    return N, w.shape[-1]
+    return springs_in_contact(arrays["state_dn_c"][live], arrays["state_law1"][live], pop.R[asp[live]]), w.shape[-1]
 
 
 def projection(N, stored, record):
@@ -82,7 +77,7 @@ def main(argv=None):
     record_path = Path(args.record).resolve()
     shown = record_path.relative_to(ROOT) if record_path.is_relative_to(ROOT) else record_path
     t = time.perf_counter()
-    N, stored = springs_in_contact(args.n)
+    N, stored = normal_stage_springs(args.n)
     record = json.loads(record_path.read_text())["memory"]
     q = np.percentile(N, [10, 25, 50, 75, 90, 99]).tolist()
     print(f"n = {args.n}: {N.size} contacts at the end of the normal stage, {stored} springs stored per direction; "

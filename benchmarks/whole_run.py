@@ -48,6 +48,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import argparse
 import json
+import math
 import platform
 import subprocess
 import sys
@@ -59,6 +60,7 @@ import numba
 import numpy as np
 
 from asperity_sim import Population, paths, presets, simulate
+from asperity_sim.laws.mdr.springs import springs_below
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"
 S, D = paths.STRESS, paths.DISPLACEMENT
@@ -78,6 +80,14 @@ def law_kw(law):
     if law == "mdr32":
         return {"law": "mdr", "k": K, "spring_dtype": "float32"}
     return {"law": law, "k": K} if law == "mdr" else {"law": law}
+
+
+def springs_in_contact(dn_c, h, R):
+    """Springs in contact of each `mdr` contact from its committed overlap dn_c [m], spacing h [m] and radius R [m],
+    counted as the kernels count them (:func:`asperity_sim.laws.mdr.springs.springs_below`)."""
+    c = h * h / R
+    return np.array([springs_below(d, ci, math.sqrt(d / ci) if d > 0.0 else 0.0)
+                     for d, ci in zip(dn_c.tolist(), c.tolist())], dtype=np.int64)
 
 
 def run_time(pop, path, law):
@@ -131,7 +141,7 @@ MEMORY = r"""
 import json, resource, sys
 import numpy as np
 sys.path.insert(0, sys.argv[3])
-from whole_run import bench_path, law_kw
+from whole_run import bench_path, law_kw, springs_in_contact
 from asperity_sim import Population, presets, simulate
 from asperity_sim.solve import run as driver
 from numba.core import event
@@ -163,11 +173,7 @@ held = 0
 if st.has_history:  # the springs in contact at the end (the largest contact count): N of springs_below, per contact
     sa = st.state_arrays()
     live = sa["asp"] >= 0
-    h, dnc, R = sa["law1"][live], sa["dn_c"][live], pop.R[sa["asp"][live]]
-    c = h * h / R
-    N = np.floor(np.sqrt(dnc / c) + 0.5)
-    N += dnc - c * (N + 0.5) ** 2 > 0.0
-    N -= (N > 0) & (dnc - c * (N - 0.5) ** 2 <= 0.0)
+    N = springs_in_contact(sa["dn_c"][live], sa["law1"][live], pop.R[sa["asp"][live]])
     held = int(np.minimum(N, st.n_stored).sum())
 print(json.dumps({"n": n, "law": law, "peak_rss": peak, "peak_rss_before": before,
                   "contacts_max": int(ds.n_contact.values.max()), "contacts_end": int(ds.n_contact.values[-1]),
