@@ -79,8 +79,8 @@ class _Workers:
 
     def __init__(self, n: int):
         self.flags = np.zeros(LINE * 2 * (n + 1), dtype=np.int64)
-        self.mail = LINE * 2 * np.arange(1, n + 1, dtype=np.int64)  # worker t's mailbox: flags[mail[t - 1]]
-        self.epoch = np.zeros(1, dtype=np.int64)
+        self.post_to = np.zeros(n, dtype=np.int64)  # the mailboxes and epochs of a post, kept (no new arrays per call)
+        self.post_epoch = np.zeros(n, dtype=np.int64)
         self.parts: list = [None] * (n + 1)
         self.errors: list = [None] * (n + 1)
         self.asleep = [False] * (n + 1)
@@ -142,14 +142,10 @@ class _Workers:
                 self.errors[t], self.parts[t] = None, part
                 posted.append((t, epoch))
         if entered is not None and posted and self.entry_polls and not any(self.asleep[t] for t, _ in posted):
-            if len(posted) == 1:  # two threads: the worker's mailbox and its epoch in arrays kept for it
-                t, epoch = posted[0]
-                self.epoch[0] = epoch
-                mail, epochs = self.mail[t - 1:t], self.epoch
-            else:
-                mail = np.array([LINE * 2 * t for t, _ in posted], dtype=np.int64)
-                epochs = np.array([epoch for _, epoch in posted], dtype=np.int64)
-            post_each_then_wait(self.flags, mail, epochs, entered, 0, self.entry_polls)
+            for i, (t, epoch) in enumerate(posted):
+                self.post_to[i], self.post_epoch[i] = LINE * 2 * t, epoch
+            m = len(posted)
+            post_each_then_wait(self.flags, self.post_to[:m], self.post_epoch[:m], entered, 0, self.entry_polls)
         else:
             for t, epoch in posted:
                 self.flags[LINE * 2 * t] = epoch
