@@ -13,7 +13,24 @@ holes, no index), what the `mdr` peak and the ratio ``mdr / (paper + k springs p
 (issue 37's memory target) would become, from the peaks and contact counts of a record of
 ``whole_run.py --memory-sizes ...``: the fixed rows' 32 springs replaced by the rounded rows.
 
-Run:   python benchmarks/spring_rows.py [--n 1000000] [--record docs/results/whole_run_52ef0e9.json]
+Over the whole run (``--run-n`` asperities, the whole benchmark path): after every commit, each
+slot's need N + 1 as above, and a replay of stores against those needs, peak [springs] over the
+run per contact at the run's largest contact count, and the ratio it would give against the
+record:
+
+- ``fixed``: today's 2k springs per slot (a check of the replay);
+- ``exact``: every row exactly its need at every commit, up and down (a contact that coarsens
+  halves its need), with no holes: rows moved in place at every commit. Reported beside it, the
+  springs that would move (every row after the first whose size changes, in slot order) over the
+  springs the commits write;
+- ``relocate s``: rows of need + s; a row that outgrows its room moves to the end of the store and
+  leaves a hole, as does a lost contact; once the holes exceed 5 % of the rows, the store is
+  compacted after the commit (rows refitted to need + s). The peak counts the holes a commit makes
+  before its compaction;
+- ``stage``: ``relocate 0`` with each row sized at birth for the largest need its contact reaches
+  before the end of its stage (known only afterwards: an oracle no store has).
+
+Run:   python benchmarks/spring_rows.py [--n 1000000] [--run-n 500000] [--record docs/results/whole_run_52ef0e9.json]
 Writes outputs/spring_rows.json.
 """
 
@@ -29,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from asperity_sim import Population, paths, presets, simulate
+from asperity_sim.solve import run as driver
 from asperity_sim.solve import run_checkpoint
 
 from whole_run import K, bench_path, springs_in_contact
@@ -68,9 +86,126 @@ def projection(N, stored, record):
     return out
 
 
+def run_needs(n: int, k: int = K):
+    """Each slot's need N + 1 (at most the springs stored; 0 for a free slot) and its asperity after every commit of the
+    benchmark path at n asperities: a list of (asp, need), and the stage of each commit."""
+    pop = Population.sample(presets.R1, n, seed=1)
+    needs = []
+    plain = driver.ContactState
+
+    class Traced(plain):
+        def commit(self, *a, **kw):
+            result = super().commit(*a, **kw)
+            m = self.n_slots
+            asp = self.asp[:m].copy()
+            live = asp >= 0
+            need = np.zeros(m, dtype=np.int64)
+            N = springs_in_contact(self.dn_c[:m][live], self.arrays[1][:m][live], pop.R[asp[live]])
+            need[live] = np.minimum(N + 1, self.n_stored)
+            needs.append((asp, need))
+            return result
+
+    driver.ContactState = Traced
+    try:
+        ds = simulate(presets.R1, bench_path(), population=pop, law="mdr", k=k)
+    finally:
+        driver.ContactState = plain
+    return needs, ds.stage.values[1:], 2 * k
+
+
+def stage_oracle(needs, stages, i):
+    """Each slot's largest need from commit i to the end of its stage, while the same contact holds it."""
+    asp, most = needs[i][0], needs[i][1].copy()
+    j = i + 1
+    while j < len(needs) and stages[j] == stages[i]:
+        a2, n2 = needs[j]
+        m = min(asp.size, a2.size)
+        same = a2[:m] == asp[:m]
+        most[:m] = np.where(same, np.maximum(most[:m], n2[:m]), most[:m])
+        j += 1
+    return most
+
+
+def replay(needs, stages, stored, rows, slack=0, hole_fraction=0.05):
+    """(peak [springs], compactions, springs moved) of a store of ``rows`` ("fixed", "exact", "relocate", "stage")."""
+    size = max(a.size for a, _ in needs)
+    room, owner = np.zeros(size, dtype=np.int64), np.full(size, -1, dtype=np.int64)
+    top = used = peak = compactions = moved = 0
+    for i, (asp, need) in enumerate(needs):
+        m, live = asp.size, asp >= 0
+        if rows == "fixed":  # a row per slot, reused by the next contact in the slot
+            peak = max(peak, stored * m)
+            continue
+        if rows == "exact":
+            changed = np.flatnonzero(np.where(live, need, 0) != room[:m])
+            moved += int(need[changed[0]:].sum()) if changed.size else 0
+            room[:m] = np.where(live, need, 0)
+            peak = max(peak, int(room.sum()))
+            continue
+        fresh = owner[:m] != asp  # a lost contact, or a slot given to another
+        used -= int(room[:m][fresh].sum())
+        room[:m][fresh] = 0
+        want = np.minimum(stored, (stage_oracle(needs, stages, i) if rows == "stage" else need) + slack)
+        placed = live & (fresh | (need > room[:m]))  # rows put at the end of the store
+        new = np.where(placed, want, room[:m])
+        used += int((new - room[:m]).sum())
+        top += int(new[placed].sum())
+        room[:m], owner[:m] = np.where(live, new, 0), asp
+        peak = max(peak, top)
+        if top > (1.0 + hole_fraction) * used:  # compacted after the commit, every row refitted
+            compactions += 1
+            room[:m] = np.where(live, want, 0)
+            used = top = int(room.sum())
+            moved += used
+    return peak, compactions, moved
+
+
+def move_cost(n, springs):
+    """What the ``exact`` store's moves would cost: an in-place shift of ``springs`` float64 pairs (numpy's memmove, one
+    thread), against the time per increment of an `mdr` run of the benchmark path at n asperities, both timed here."""
+    pop = Population.sample(presets.R1, n, seed=2)
+    simulate(presets.R1, bench_path(), population=pop, law="mdr", k=K)
+    ds = simulate(presets.R1, bench_path(), population=pop, law="mdr", k=K)
+    increment = ds.attrs["wall_time_increment_loop_s"] / (ds.sizes["step"] - 1)
+    store = np.random.default_rng(0).random(2 * springs + 64)
+    shifts = []
+    for _ in range(15):
+        t = time.perf_counter()
+        store[64:] = store[:-64]
+        shifts.append(time.perf_counter() - t)
+    shift = float(np.median(shifts))
+    return {"springs": springs, "shift_s": shift, "mdr_increment_s": increment, "shift_over_increment": shift / increment}
+
+
+STORES = (("fixed", 0), ("exact", 0), ("relocate", 0), ("relocate", 2), ("relocate", 4), ("stage", 0))
+
+
+def stores(n, record):
+    """The replay of every store in STORES over the whole run at n asperities, with the ratios against ``record``."""
+    needs, stages, stored = run_needs(n)
+    contacts = max(int((a >= 0).sum()) for a, _ in needs)
+    written = sum(int(need.sum()) for _, need in needs)
+    out = {"contacts_max": contacts, "commits": len(needs), "springs_written": written,
+           "need_per_contact_by_commit": [float(need[a >= 0].mean()) for a, need in needs],
+           "exact_move": move_cost(n, max(int(need.sum()) for _, need in needs))}
+    for rows, slack in STORES:
+        peak, compactions, moved = replay(needs, stages, stored, rows, slack)
+        per_contact = peak / contacts
+        sizes = {}
+        for size, res in record.items():
+            c = res["mdr"]["contacts_max"]
+            mdr = res["mdr"]["peak_rss"] - (stored - per_contact) * 2 * 8 * c
+            sizes[size] = {"mdr_peak_rss": mdr, "ratio": mdr / (res["paper"]["peak_rss"] + res["springs_bytes"])}
+        out[f"{rows} {slack}" if rows == "relocate" else rows] = {
+            "peak_springs_per_contact": per_contact, "compactions": compactions, "moved_over_written": moved / written,
+            "sizes": sizes}
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1_000_000, help="asperities of the normal-stage run")
+    ap.add_argument("--run-n", type=int, default=500_000, help="asperities of the whole-run replay")
     ap.add_argument("--record", default=str(ROOT / "docs/results/whole_run_52ef0e9.json"),
                     help="a whole_run.py record with memory peaks")
     args = ap.parse_args(argv)
@@ -91,9 +226,21 @@ def main(argv=None):
         print(f"  g = {g}: {p['row_springs']:.1f} springs, {p['bytes_per_contact']:.0f} B per contact; {sizes}")
     fixed = ", ".join(f"n = {int(n):.0e}: {r['ratio']:.3f}" for n, r in record.items())
     print(f"  fixed rows of {stored}: {stored * 16} B per contact; {fixed}")
+    run = stores(args.run_n, record)
+    print(f"over the whole run at n = {args.run_n} ({run['commits']} commits, {run['contacts_max']} contacts at most), "
+          "the store's peak per contact at the largest contact count:")
+    for name, r in run.items():
+        if isinstance(r, dict) and "sizes" in r:
+            sizes = ", ".join(f"n = {int(n):.0e}: ratio {s['ratio']:.3f}" for n, s in r["sizes"].items())
+            print(f"  {name:10s}: {r['peak_springs_per_contact']:.1f} springs; {r['compactions']} compactions, moved "
+                  f"{r['moved_over_written']:.2f} of the springs the commits write; {sizes}")
+    mv = run["exact_move"]
+    print(f"  a move of the exact store's {mv['springs'] * 16 / 2**20:.0f} MiB in place takes {1e3 * mv['shift_s']:.2f} ms, "
+          f"{mv['shift_over_increment']:.1%} of an mdr increment ({1e3 * mv['mdr_increment_s']:.1f} ms) at n = {args.run_n}")
     out = {"n": args.n, "contacts": int(N.size), "stored": int(stored), "mean": float(N.mean()), "quantiles": q,
            "histogram": np.bincount(N.astype(np.int64)).tolist(), "record": str(shown),
-           "projection": {str(g): p for g, p in proj.items()}, "seconds": time.perf_counter() - t}
+           "projection": {str(g): p for g, p in proj.items()}, "run_n": args.run_n, "whole_run": run,
+           "seconds": time.perf_counter() - t}
     path = ROOT / "outputs" / "spring_rows.json"
     path.parent.mkdir(exist_ok=True)
     path.write_text(json.dumps(out, indent=1))

@@ -85,9 +85,15 @@ def law_kw(law):
 def springs_in_contact(dn_c, h, R):
     """Springs in contact of each `mdr` contact from its committed overlap dn_c [m], spacing h [m] and radius R [m],
     counted as the kernels count them (:func:`asperity_sim.laws.mdr.springs.springs_below`)."""
-    c = h * h / R
-    return np.array([springs_below(d, ci, math.sqrt(d / ci) if d > 0.0 else 0.0)
-                     for d, ci in zip(dn_c.tolist(), c.tolist())], dtype=np.int64)
+    out = np.empty(dn_c.size, dtype=np.int64)
+    _count_springs(np.ascontiguousarray(dn_c, dtype=float), np.ascontiguousarray(h * h / R, dtype=float), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _count_springs(dn_c, c, out):
+    for i in range(dn_c.size):
+        out[i] = springs_below(dn_c[i], c[i], math.sqrt(dn_c[i] / c[i]) if dn_c[i] > 0.0 else 0.0)
 
 
 def run_time(pop, path, law):
