@@ -75,15 +75,18 @@ def projection(N, stored, record):
     out = {}
     for g in GRANULARITIES:
         row = float(np.minimum(np.ceil(need / g) * g, stored).mean())
-        per_contact = row * 2 * 8  # two tangential directions, float64
-        sizes = {}
-        for n, res in record.items():
-            contacts = res["mdr"]["contacts_max"]
-            saved = (stored * 2 * 8 - per_contact) * contacts
-            peak = res["mdr"]["peak_rss"] - saved
-            sizes[n] = {"mdr_peak_rss": peak, "ratio": peak / (res["paper"]["peak_rss"] + res["springs_bytes"])}
-        out[g] = {"row_springs": row, "bytes_per_contact": per_contact, "sizes": sizes}
+        out[g] = {"row_springs": row, "bytes_per_contact": row * 2 * 8, "sizes": with_rows_of(row, stored, record)}
     return out
+
+
+def with_rows_of(springs, stored, record):
+    """Per size of the record: the `mdr` peak [B] with ``springs`` per contact in place of the ``stored`` of the
+    fixed rows (two tangential directions, float64, at the run's largest contact count), and its ratio."""
+    sizes = {}
+    for n, res in record.items():
+        peak = res["mdr"]["peak_rss"] - (stored - springs) * 2 * 8 * res["mdr"]["contacts_max"]
+        sizes[n] = {"mdr_peak_rss": peak, "ratio": peak / (res["paper"]["peak_rss"] + res["springs_bytes"])}
+    return sizes
 
 
 def run_needs(n: int, k: int = K):
@@ -191,11 +194,7 @@ def stores(n, record):
     for rows, slack in STORES:
         peak, compactions, moved = replay(needs, stages, stored, rows, slack)
         per_contact = peak / contacts
-        sizes = {}
-        for size, res in record.items():
-            c = res["mdr"]["contacts_max"]
-            mdr = res["mdr"]["peak_rss"] - (stored - per_contact) * 2 * 8 * c
-            sizes[size] = {"mdr_peak_rss": mdr, "ratio": mdr / (res["paper"]["peak_rss"] + res["springs_bytes"])}
+        sizes = with_rows_of(per_contact, stored, record)
         out[f"{rows} {slack}" if rows == "relocate" else rows] = {
             "peak_springs_per_contact": per_contact, "compactions": compactions, "moved_over_written": moved / written,
             "sizes": sizes}
