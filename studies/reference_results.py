@@ -104,7 +104,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_against_acd6ca3_7111d38.json", "cold_start_7111d38.json", "whole_run_798b67c.json",
            "whole_run_against_7d2a8ea_798b67c.json", "same_numbers_lists.md", "same_numbers_lists.json",
            "same_numbers_lists_exact.md", "same_numbers_lists_exact.json", "whole_run_against_059efc5.json",
-           "whole_run_against_bfd2ea4.json", "whole_run_52ef0e9.json", "spring_rows.json", "same_numbers_calls.md", "same_numbers_calls.json",
+           "whole_run_against_bfd2ea4.json", "whole_run_52ef0e9.json", "spring_rows.json", "same_numbers_calls.md",
+           "same_numbers_calls.json",
            "same_numbers_calls_exact.md", "same_numbers_calls_exact.json", "whole_run_4893ca5.json")
 
 
