@@ -8,14 +8,16 @@ checkpoint), one contact (``single_contact``), the asperity ``laws`` and the qua
 ``ui`` beside them.
 """
 
+import importlib as _importlib
 import os as _os
 
 # Idle OpenMP threads of numba's parallel kernels spin by default and steal the cores from
 # other processes (sweep workers, other jobs); sleeping costs microseconds per kernel call.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+from typing import TYPE_CHECKING  # noqa: E402
+
 from . import deprecated as _deprecated  # noqa: E402
-from . import laws, paths, presets, reference  # noqa: E402
 from .errors import (  # noqa: E402
     CheckpointError,
     ConvergenceError,
@@ -25,13 +27,31 @@ from .errors import (  # noqa: E402
     StressNotReachableError,
     WallTimeExceededError,
 )
-from .kernels.evaluate import evaluate  # noqa: E402
-from .params import InterfaceParams  # noqa: E402
-from .sampling.population import Population  # noqa: E402
-from .solve.driver import resume, simulate  # noqa: E402
-from .solve.single import single_contact  # noqa: E402
-from .solve.solver import SolverSettings  # noqa: E402
 from .version import __version__  # noqa: E402
+
+# The rest of the public API is imported at its first use (PEP 562): what it imports (xarray,
+# pandas, the reference's scipy) takes about half a second, which a first run would pay before it
+# starts compiling, and so would the compile-ahead helper (asperity_sim.kernels.ahead), a fresh
+# process that needs none of it.
+_LAZY = {
+    "InterfaceParams": "params",
+    "Population": "sampling.population",
+    "evaluate": "kernels.evaluate",
+    "simulate": "solve.driver",
+    "resume": "solve.driver",
+    "single_contact": "solve.single",
+    "SolverSettings": "solve.solver",
+}
+_SUBPACKAGES = ("laws", "paths", "presets", "reference")
+
+if TYPE_CHECKING:  # what the names are, for type checkers and documentation tools
+    from . import laws, paths, presets, reference
+    from .kernels.evaluate import evaluate
+    from .params import InterfaceParams
+    from .sampling.population import Population
+    from .solve.driver import resume, simulate
+    from .solve.single import single_contact
+    from .solve.solver import SolverSettings
 
 _deprecated.install()
 
@@ -45,5 +65,17 @@ __all__ = [
 
 
 def __getattr__(name):
-    """0.3's module paths (``asperity_sim.kernels.evaluate``, ...), deprecated: see :mod:`asperity_sim.deprecated`."""
-    return _deprecated.moved_module(name)
+    """The public names imported at their first use (``_LAZY``, the subpackages), then 0.3's module paths
+    (``asperity_sim.assemble``, ...), deprecated: see :mod:`asperity_sim.deprecated`."""
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    elif name in _SUBPACKAGES:
+        value = _importlib.import_module(f".{name}", __name__)
+    else:
+        return _deprecated.moved_module(name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

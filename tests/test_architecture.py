@@ -2,11 +2,14 @@
 
 Imports flow one way between the subpackages, no module imports itself back through a cycle
 (lazy imports inside functions count), no private name crosses a module boundary, no module
-grows far beyond 400 lines, and the module paths of 0.3 still work, with a warning.
+grows far beyond 400 lines, the module paths of 0.3 still work, with a warning, and the package's
+public names, imported at their first use, are what their modules define.
 """
 
 import ast
 import importlib
+import os
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -128,3 +131,25 @@ def test_the_paths_of_0_3_still_work_with_a_deprecation_warning(old, name):
     assert any(issubclass(w.category, DeprecationWarning) and f"asperity_sim.{old} moved" in str(w.message)
                for w in caught)
     assert getattr(importlib.import_module(f"asperity_sim.{deprecated.MOVED[old][0]}"), name, value) is value
+
+
+def test_every_public_name_is_the_one_its_module_defines():
+    """The package imports its public names at their first use: each is there, and is the object itself."""
+    for name in asperity_sim.__all__:
+        assert name in dir(asperity_sim)
+        assert getattr(asperity_sim, name) is not None
+    assert asperity_sim.simulate is importlib.import_module("asperity_sim.solve.driver").simulate
+    assert asperity_sim.Population is importlib.import_module("asperity_sim.sampling.population").Population
+    assert asperity_sim.laws is importlib.import_module("asperity_sim.laws")
+    with pytest.raises(AttributeError, match="no_such_name"):
+        asperity_sim.no_such_name  # noqa: B018
+
+
+def test_a_run_and_the_compile_ahead_helper_start_without_the_output_libraries():
+    """``simulate``, and the helper that compiles ahead in a fresh process, are reached without importing xarray
+    or pandas (half a second that a first run would spend before it starts compiling)."""
+    code = ("import sys, asperity_sim, asperity_sim.kernels.ahead_helper; asperity_sim.simulate; "
+            "print(sorted(m for m in ('xarray', 'pandas') if m in sys.modules))")
+    env = {**os.environ, "PYTHONPATH": str(PACKAGE.parent)}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert done.stdout.strip() == "[]"
