@@ -12,6 +12,7 @@ from asperity_sim import evaluate, presets
 from asperity_sim.params import InterfaceParams
 from asperity_sim.sampling.distributions import orientation_from_uniform
 from asperity_sim.sampling.draws import unit_points
+from asperity_sim.sampling import population
 from asperity_sim.sampling.population import Population
 
 P_MIN = 1e-4  # significance of every goodness-of-fit test (fixed seeds)
@@ -616,8 +617,13 @@ BAD_DIRECT = [
 ]
 
 
+@pytest.mark.parametrize("compiled", [False, True], ids=["python", "compiled"])
 @pytest.mark.parametrize("what, changes, message", BAD_DIRECT, ids=[f"{b[0]}-{i}" for i, b in enumerate(BAD_DIRECT)])
-def test_direct_construction_refuses_what_the_kernels_cannot_use(what, changes, message):
+def test_direct_construction_refuses_what_the_kernels_cannot_use(what, changes, message, compiled, monkeypatch):
+    """Each bad value refused by name, whether the check runs compiled or, for few asperities, as Python."""
+    assert BASE.n <= population.CHECKED_IN_PYTHON  # the Python check, unless the threshold is lowered below
+    if compiled:
+        monkeypatch.setattr(population, "CHECKED_IN_PYTHON", 0)
     with pytest.raises(ValueError, match=message):
         _direct(**changes)
 

@@ -45,6 +45,9 @@ N_MAX = 2**31 - 1
 
 
 UNIT_TOL = 1e-12  # largest |cos² phi + sin² phi - 1| accepted in a Population
+CHECKED_IN_PYTHON = 64
+"""Populations of at most this many asperities are checked by the Python of :func:`_all_valid`: compiling it
+would cost half a second more than the check (the compile-ahead helper's three asperities, single contacts)."""
 
 
 @kernel()
@@ -148,7 +151,8 @@ class Population:
             elif a.shape[0] != n:
                 raise ValueError(f"Population.{name} has length {a.shape[0]}, r has length {n} "
                                  "(valid: all five arrays of equal length)")
-        if not _all_valid(self.r, self.R, self.u, self.cos_phi, self.sin_phi):  # the fast pass; then find why
+        all_valid = _all_valid.py_func if n <= CHECKED_IN_PYTHON else _all_valid
+        if not all_valid(self.r, self.R, self.u, self.cos_phi, self.sin_phi):  # the fast pass; then find why
             code, i = _first_invalid(self.r, self.R, self.u, self.cos_phi, self.sin_phi)
             raise ValueError(self._invalid_text(code, i))
         w = self.weight
