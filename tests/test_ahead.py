@@ -95,6 +95,31 @@ def test_a_law_without_history_gets_a_helper_for_its_evaluation_kernel_under_pol
         assert not ahead.pending()
 
 
+def test_the_announced_imports_are_made_while_waiting_on_a_helper_and_only_then(monkeypatch):
+    """A run's later imports (its output's) are made as it would wait on the helper, once; no wait, no import."""
+    monkeypatch.setattr(ahead, "_IDLE", [])
+    monkeypatch.delitem(sys.modules, "colorsys", raising=False)  # a small standard module, imported by no test
+    ahead.expect("mdr", True, imports=("colorsys",))
+    ahead.expect(None)  # the end of the set-up keeps them for the run's first wait
+    commit_fresh = kernels("mdr", birth=True)["commit_fresh"]
+    ahead.wait_for(commit_fresh)  # nothing pending: no wait, so nothing imported
+    assert "colorsys" not in sys.modules
+    assert ahead.start("mdr", True, helper="asperity_sim.no_such_module")
+    ahead.wait_for(commit_fresh)
+    assert "colorsys" in sys.modules and ahead._IDLE == []
+
+
+def test_a_run_announces_the_imports_of_its_output(monkeypatch):
+    from asperity_sim import paths, presets, simulate
+    from asperity_sim.output.recorder import LATE_IMPORTS
+
+    seen = []
+    real = ahead.expect
+    monkeypatch.setattr(ahead, "expect", lambda *a, **k: (seen.append(k.get("imports")), real(*a, **k)))
+    simulate(presets.R1, paths.constant_normal_shear(300e6, 1e-6, increments=2), n=200, seed=1)
+    assert seen[0] == LATE_IMPORTS and "xarray" in LATE_IMPORTS
+
+
 class _Event:
     def __init__(self, dispatcher):
         self.data = {"dispatcher": dispatcher}

@@ -24,6 +24,7 @@ compiles the kernels itself, as it would have.
 
 from __future__ import annotations
 
+import importlib
 import os
 import subprocess
 import sys
@@ -48,6 +49,7 @@ BUILT_IN = frozenset(laws.LAWS)
 _PENDING: dict = {}  # kernel qualname -> the helper compiling it
 _LOCK = threading.Lock()
 _EXPECTED: list = []  # (law name, birth, serial) of the run being set up in this process (expect)
+_IDLE: list = []  # modules the run imports after its kernels: imported instead while it waits on a helper (expect)
 
 
 def evaluation_kernel(serial: bool) -> str:
@@ -64,11 +66,15 @@ def kernel_names(law, birth: bool, serial: bool = True) -> list:
     return [kernels(law, birth=birth)[k].py_func.__qualname__ for k in keys]
 
 
-def expect(law_name, birth: bool = False, serial: bool = True) -> None:
+def expect(law_name, birth: bool = False, serial: bool = True, imports=()) -> None:
     """Announce the run this process sets up next (its law, policy, and whether its population fits the serial
     kernel): a helper for it starts at the first compile of any kernel of the package, before the run needs its own.
-    ``law_name`` None: no run is being set up (the announcement ends)."""
+    ``imports``: modules the run imports once its kernels are compiled (its output's), imported instead while
+    it would wait idle on the helper.  ``law_name`` None: no run is being set up (the announcement ends; the
+    imports stay until a wait or the next announcement)."""
     _EXPECTED[:] = [] if law_name is None else [(law_name, birth, serial)]
+    if law_name is not None:
+        _IDLE[:] = imports
 
 
 def pending() -> set:
@@ -86,6 +92,8 @@ def wait_for(dispatcher) -> None:
         process = _PENDING.get(name)
         if process is None:
             return
+        while _IDLE:  # this process would only wait: the run's later imports now, off its critical path
+            importlib.import_module(_IDLE.pop(0))
         while name in _PENDING:  # the helper says each kernel as it is cached, in order
             line = process.stdout.readline()
             if not line:  # done or failed: what it did not say, this process compiles

@@ -27,6 +27,9 @@ from .variables import (
 if TYPE_CHECKING:
     import xarray as xr
 
+LATE_IMPORTS = ("xarray",)
+"""What building the Dataset imports (at its first build, not at this module's import: see :func:`_build`)."""
+
 PAPER = ("Misra, A. and Huang, S.: Micromechanical stress-displacement model for rough interfaces: "
          "effect of asperity contact orientation on closure and shear behavior")
 
@@ -120,7 +123,8 @@ def link_standard_errors(ds) -> xr.Dataset:
 
 def _build(variables, data, extra=None) -> xr.Dataset:
     """The Dataset of the step variables (data: name -> array) and of ``extra`` (name -> (dims, array, attrs))."""
-    import xarray as xr  # here, not at the top: a first run would pay its import (0.4 s) before it starts compiling
+    import xarray as xr  # here, not at the top: a first run would pay its import (0.4 s) before it starts compiling,
+    # while now it imports it as it waits on a compile-ahead helper (LATE_IMPORTS, kernels.ahead.expect)
 
     data_vars = {name: (var.dims, data[name], _attrs(var)) for name, var in variables.items()}
     data_vars.update(extra or {})

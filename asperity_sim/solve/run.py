@@ -25,7 +25,7 @@ from ..kernels import ahead
 from ..kernels.evaluate import Workspace, evaluate_steps, evaluate_unchecked
 from ..kernels.layout import fits_serial
 from ..kernels.state import ContactState
-from ..output.recorder import WALL_TIME_DESCRIPTION, Recorder, run_attributes
+from ..output.recorder import LATE_IMPORTS, WALL_TIME_DESCRIPTION, Recorder, run_attributes
 from ..output.variables import run_variables
 from ..sampling.population import Population
 from ..version import __version__
@@ -61,7 +61,8 @@ class Run:
         self.variables = run_variables(self.law)
         self.domain = DomainMonitor() if self.law.path_independent else None
         # a first run: a helper compiles the kernels this run needs last while it compiles the first (kernels.ahead)
-        ahead.expect(self.law.name, policy == "birth", fits_serial(population.n if population is not None else n))
+        ahead.expect(self.law.name, policy == "birth", fits_serial(population.n if population is not None else n),
+                     imports=LATE_IMPORTS)
         restored = None
         if saved is not None:  # every array is checked before any kernel sees it
             restored = run_checkpoint.restore(saved, params=params, n_stages=len(path.stages), law=self.law,
