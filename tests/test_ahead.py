@@ -70,6 +70,53 @@ def test_a_first_paper_run_loads_the_helpers_evaluation_kernel_and_gives_the_sam
     assert helped["stress"] == _here("paper").stress.values.tolist()  # the bits of a run whose kernels are ours
 
 
+MEANWHILE = """
+import sys
+import numpy as np
+from asperity_sim import presets
+from asperity_sim.kernels import ahead, evaluate as ev
+from asperity_sim.sampling.population import Population
+p = presets.R1
+pop = Population.from_arrays(p, [0.0, 0.1 * p.beta], [p.R_m] * 2, [0.3, 0.6], [0.0, 1.0])
+assert ahead.start("paper", False, helper="asperity_sim.no_such_module", serial=True)
+def stop(dispatcher):  # the run would now wait for the helper: what it compiled meanwhile is in the cache
+    sys.exit(0)
+ev.wait_for = stop
+ev.evaluate(pop, np.array([p.beta, 0.0, 0.0]))
+sys.exit(1)
+"""
+
+HELPER = """
+import json
+from numba.core import event
+from asperity_sim.kernels import ahead_helper
+compiled = []
+class Listener(event.Listener):
+    def on_start(self, ev):
+        compiled.append(ev.data["dispatcher"].py_func.__qualname__.split("__")[0])
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", Listener())
+ahead_helper.main(["paper", "follow", "serial"])
+print(json.dumps(compiled))
+"""
+
+
+@pytest.mark.slow  # a helper's compile of the serial evaluation kernel (its loop) in an empty numba cache
+def test_the_run_compiles_the_serial_kernels_other_callees_while_it_waits_and_the_helper_loads_them(tmp_path):
+    """A first run that would wait for the helper's serial kernel compiles the kernel's other callees (bounds,
+    finish) meanwhile, with the argument types the kernel gives them: the helper then loads them from the cache,
+    and compiles only the loop (which it compiles first, once) and the kernel."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT), ahead.ENV: "0"}
+    run = subprocess.run([sys.executable, "-c", MEANWHILE], env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    helper = subprocess.run([sys.executable, "-c", HELPER], env=env, capture_output=True, text=True, timeout=600)
+    assert helper.returncode == 0, helper.stderr
+    compiled = json.loads(helper.stdout.strip().splitlines()[-1])
+    assert compiled.count("chunk_follow") == 1 and "reduce_serial" in compiled
+    assert "bounds" not in compiled and "finish" not in compiled
+
+
 def test_wait_for_returns_at_once_for_a_kernel_no_helper_compiles():
     ahead.wait_for(kernels("mdr")["commit_slots"])  # nothing pending in this process: no wait, no error
 
@@ -156,6 +203,7 @@ def test_the_helper_says_the_evaluation_kernel_it_compiled(mode, capsys):
     assert said == ahead.kernel_names(laws.get("paper"), False, mode == "serial")
     kern = kernels("paper")[ahead.evaluation_kernel(mode == "serial")]
     assert kern.signatures  # the helper's evaluation went through the kernel it names
+    assert len(kernels("paper")["chunk_follow"].signatures) == 1  # its loop, called first, with the kernel's types
 
 
 def test_a_run_announces_itself_only_while_it_is_set_up(monkeypatch):

@@ -1,6 +1,6 @@
 """Compile ahead on the other core: the kernels a first run needs last, while this process compiles the others.
 
-Owns :func:`expect`, :func:`start`, :func:`wait_for` and the listener that starts the helper.
+Owns :func:`expect`, :func:`start`, :func:`compiling`, :func:`wait_for` and the listener that starts the helper.
 A first run with an empty numba cache compiles its kernels one after the other on one core:
 the sampling kernels, then the evaluation (for a history law its trial, then its commit). A
 helper process (:mod:`asperity_sim.kernels.ahead_helper`) compiles the ones needed last on a
@@ -35,7 +35,7 @@ from numba.core import event
 
 from .. import jit, laws
 
-__all__ = ["wait_for", "start", "expect", "pending", "kernel_names", "evaluation_kernel", "ENV"]
+__all__ = ["wait_for", "compiling", "start", "expect", "pending", "kernel_names", "evaluation_kernel", "ENV"]
 
 ENV = "ASPERITY_SIM_COMPILE_AHEAD"
 """Environment variable: ``0`` turns compiling ahead off (the helper runs with it)."""
@@ -81,6 +81,11 @@ def pending() -> set:
     """The kernels (qualified names) a helper is compiling for this process."""
     with _LOCK:
         return set(_PENDING)
+
+
+def compiling(dispatcher) -> bool:
+    """True if a helper is compiling ``dispatcher`` for this process (what this process might do meanwhile)."""
+    return bool(_PENDING) and dispatcher.py_func.__qualname__ in pending()
 
 
 def wait_for(dispatcher) -> None:

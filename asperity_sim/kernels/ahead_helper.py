@@ -7,7 +7,9 @@ with populations given as arrays (no sampling kernels):
   which compiles the commit of contacts born (``commit_fresh``) and then of committed contacts
   (``commit_slots``) with the argument types of any run;
 - a law without history: one evaluation where every asperity touches, of three asperities
-  (``serial``: the serial kernel) or of one more than the serial kernel takes (``parallel``).
+  (``serial``: the serial kernel) or of one more than the serial kernel takes (``parallel``),
+  after a call of its loop over a chunk (``chunk_follow``, most of its compile) on its own, so
+  that the run, waiting, compiles the serial kernel's other callees for it to load.
 
 Each kernel's name is printed as soon as numba has written it to its cache.
 """
@@ -23,7 +25,9 @@ from ..sampling.population import Population
 from .ahead import kernel_names
 from .evaluate import evaluate
 from .layout import CHUNK, SERIAL_CHUNKS
+from .specialise import kernels
 from .state import ContactState
+from .workspace import Workspace
 
 
 def main(argv=None) -> int:
@@ -44,6 +48,11 @@ def main(argv=None) -> int:
     n = 3 if serial else SERIAL_CHUNKS * CHUNK + 1
     pop = Population.from_arrays(p, np.linspace(0.0, 0.2 * p.beta, n), np.full(n, p.R_m), np.linspace(0.3, 0.9, n),
                                  np.linspace(0.0, 2.0, n))
+    # the loop over a chunk first (most of the kernel's compile), with the argument types the kernel gives it: the
+    # kernel's other callees (bounds, finish) the waiting run compiles meanwhile (kernels.evaluate.at_contacts)
+    state, (_, k_e, *_) = ContactState(pop, law, policy), pop.kernel_constants
+    kernels(lw)["chunk_follow"](0, *pop.arrays, n, p.beta, 0.0, 0.0, 0.0, 0.0, k_e, state.consts, 0.0,
+                                Workspace(n).partial)
     evaluate(pop, np.array([p.beta, 0.0, 0.0]), law=law, policy=policy)
     print(names[0], flush=True)
     return 0

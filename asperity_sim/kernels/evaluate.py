@@ -53,7 +53,7 @@ from .layout import (
     finish,
 )
 from . import interaction
-from .ahead import wait_for
+from .ahead import compiling, wait_for
 from .history import scan_chunks
 from .reach import bounds
 from .specialise import kernels
@@ -158,7 +158,11 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
             serial = fits_serial(n_active, SERIAL_ACTIVE_CHUNKS)
         if serial:
             reduce = kern["reduce_serial"]
-            wait_for(reduce)  # a first run: the helper may be compiling it (kernels.ahead)
+            if compiling(reduce):  # a first run: a helper compiles it (kernels.ahead), its loop first; its other
+                # callees here meanwhile, with its argument types, for the helper to load from the cache
+                bounds(pop.r, pop.R_min, r_o, k_e, beta, d, tb)
+                finish(workspace.partial, 0, pop.n, scale, np.empty(N_OUT))
+            wait_for(reduce)
             reduce(*pop.arrays, pop.R_min, _row(d), r_o, k_e, state.consts, beta, tb, pop.n, scale, workspace.partial,
                    out.reshape(1, N_OUT))
             return evaluation_from(d, out)
