@@ -18,6 +18,12 @@ core is not counted (the wall time a user waits).
 
 Run:   python3 benchmarks/cold_start.py [--skip-main-job]
 Writes outputs/cold_start.json and prints a table.  About 2 minutes on 2 cores (2026-11-27).
+
+Against an older commit: ``--against COMMIT [--rounds R] [--laws paper,mdr]`` times the cold
+small runs of that commit's code (a temporary git worktree) and of this checkout in turn, R
+rounds, each run in a fresh process with its own empty cache, and writes
+outputs/cold_start_against.json (every time, and the medians): on a shared machine whose speed
+drifts, runs side by side in time are the comparison that holds.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "outputs"
@@ -61,10 +69,12 @@ print(json.dumps({"import_s": t_import, "run_s": t_run, "total_s": time.perf_cou
 """
 
 
-def small_run(law: str, cache: Path) -> dict:
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
+def small_run(law: str, cache: Path, root: Path = ROOT) -> dict:
+    """The small run of ``law`` in a fresh process, with the package of the checkout ``root`` and numba's cache in
+    ``cache``."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(root)}
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", SMALL, law], env=env, capture_output=True, text=True, cwd=ROOT)
+    done = subprocess.run([sys.executable, "-c", SMALL, law], env=env, capture_output=True, text=True, cwd=root)
     wall = time.perf_counter() - t0
     if done.returncode != 0:
         raise SystemExit(done.stderr[-3000:])
@@ -83,10 +93,48 @@ def main_job(cache: Path, outdir: Path) -> float:
     return time.perf_counter() - t0
 
 
+def against(commit: str, rounds: int, laws: list) -> dict:
+    """Cold small runs of the code of ``commit`` and of this checkout, in turn (module docstring)."""
+    times = {label: {law: [] for law in laws} for label in ("old", "new")}
+    with tempfile.TemporaryDirectory(prefix="cold_start_") as tmp:
+        old = Path(tmp) / "old"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(old), commit], check=True,
+                       capture_output=True)
+        try:
+            for i in range(rounds):
+                for law in laws:
+                    for label, root in (("old", old), ("new", ROOT)):
+                        with tempfile.TemporaryDirectory(prefix="cache_", dir=tmp) as cache:
+                            times[label][law].append(small_run(law, Path(cache), root)["process_s"])
+                    print(f"  round {i + 1} {law}: old {times['old'][law][-1]:.1f} s, new {times['new'][law][-1]:.1f} s",
+                          flush=True)
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)], capture_output=True)
+    medians = {label: {law: float(np.median(t)) for law, t in by_law.items()} for label, by_law in times.items()}
+    return {"commit": commit, "cold_s": times, "median_cold_s": medians}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--skip-main-job", action="store_true", help="only the two small runs")
+    ap.add_argument("--against", metavar="COMMIT", help="cold small runs of COMMIT's code and of this checkout, in turn")
+    ap.add_argument("--rounds", type=int, default=4, help="rounds of --against (default 4)")
+    ap.add_argument("--laws", default="paper,mdr", help="the laws of --against (default paper,mdr)")
     a = ap.parse_args(argv)
+    if a.against:
+        t0 = time.perf_counter()
+        record = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                              "platform": platform.platform(), "load": os.getloadavg()[0]},
+                  "new": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                                        text=True).stdout.strip(),
+                  **against(a.against, a.rounds, a.laws.split(","))}
+        record["wall_s"] = time.perf_counter() - t0
+        OUT.mkdir(exist_ok=True)
+        (OUT / "cold_start_against.json").write_text(json.dumps(record, indent=1) + "\n")
+        for law, m in record["median_cold_s"]["new"].items():
+            print(f"{law}: median cold {record['median_cold_s']['old'][law]:.1f} s ({a.against}), {m:.1f} s (this checkout)")
+        print(f"wrote {OUT / 'cold_start_against.json'}")
+        return 0
     record = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
               "commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
                                        text=True).stdout.strip()}
