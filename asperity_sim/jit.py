@@ -9,7 +9,8 @@ Owns the two decorators every kernel of the package is written with:
 
 The first compile of each group of kernels in a process (a law's reductions, the other kernels)
 says so once on a terminal (:class:`CompileNotice`): a first run after an install or an upgrade
-waits for the compiler, and the user should know why.
+waits for the compiler, and the user should know why.  Importing it also makes numba inline the
+``inline="always"`` kernels without copying their IR (:mod:`asperity_sim.inlining`).
 
 Why a fingerprint.  numba caches a compiled kernel on disk and reuses it as long as the
 kernel's own source file is unchanged; it does not notice an edit in a function the kernel
@@ -31,6 +32,8 @@ from pathlib import Path
 
 import numba
 from numba.core import event
+
+from . import inlining
 
 __all__ = ["kernel", "template", "kernel_sources", "source_fingerprint", "tag", "group_of", "CompileNotice"]
 
@@ -128,3 +131,4 @@ class CompileNotice(event.Listener):
 
 NOTICE = CompileNotice()
 event.register("numba:compile", NOTICE)
+inlining.install()  # before any kernel compiles: numba's inlining without its copies (asperity_sim.inlining)
