@@ -108,7 +108,10 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "same_numbers_calls.json",
            "same_numbers_calls_exact.md", "same_numbers_calls_exact.json", "whole_run_4893ca5.json",
            "whole_run_e4b0a47.json", "cold_start_c3671cb.json", "cold_start_c3671cb_2.json",
-           "whole_run_907c481.json", "cold_start_cb5a3fa.json", "cold_start_cb5a3fa_2.json")
+           "whole_run_907c481.json", "cold_start_cb5a3fa.json", "cold_start_cb5a3fa_2.json",
+           "cold_start_1ecc267.json", "cold_start_dc5d572.json", "cold_start_against_46a8cec.json",
+           "cold_start_against_46a8cec_mdr.json", "cold_start_against_1ecc267.json",
+           "cold_start_against_1ecc267_paper.json")
 
 
 def script_path(name: str) -> Path:
