@@ -65,7 +65,7 @@ one with grid_forces) and 4, 2, 1.4, 1 for the closure (s = 0.7 would take ~10-2
 
 Run:   python studies/convergence.py              (full study: 30 min on this 2-core machine at load
                                                    average 1.5-2, half of it the grid runs at s = 1)
-       python studies/convergence.py --quick      (smoke run, about 1 min)
+       python studies/convergence.py --quick      (smoke run, about 25 s)
 Writes outputs/convergence.nc (dims method, n, replica, quantity; wall_time over method, n,
 replica, scene), outputs/convergence.png (log-log error of the curve against wall time, one
 line per method, one panel per scene) and outputs/convergence.md (table for the README:
@@ -120,15 +120,16 @@ class Scene:
 
 def scenes(quick=False):
     inc13, inc11 = (4, 3) if quick else (20, 10)
+    coarse = (4.0, 3.0) if quick else (4.0, 2.0)  # a smoke run's grids: two sizes, a sixth of the points of s = 2
     big = () if quick else (1.4, 1.0)
     fine = () if quick else (0.7, 0.5)
     out = {
-        "fig13_R1": Scene(presets.R1, shear_path(500e6, 50e-6, inc13), "fig13", (4.0, 2.0) + big[1:]),
-        "fig13_S1": Scene(presets.S1, shear_path(500e6, 50e-6, inc13), "fig13", (4.0, 2.0) + big[1:]),
-        "fig11_R1": Scene(presets.R1, paths.three_step(15e-6, inc11), "fig11", (4.0, 2.0) + big + fine[:1]),
+        "fig13_R1": Scene(presets.R1, shear_path(500e6, 50e-6, inc13), "fig13", coarse + big[1:]),
+        "fig13_S1": Scene(presets.S1, shear_path(500e6, 50e-6, inc13), "fig13", coarse + big[1:]),
+        "fig11_R1": Scene(presets.R1, paths.three_step(15e-6, inc11), "fig11", coarse + big + fine[:1]),
         "closure_R1": Scene(presets.R1, paths.LoadPath((paths.Stage((S, D, D), (500e6, 0.0, 0.0), inc13,
                                                                     name="normal loading"),), name="closure"),
-                            "closure", (4.0, 2.0) + big),
+                            "closure", coarse + big),
     }
     q = {"fig13": ("curve", "delta1_500MPa", "sigma2_10um", "sigma2_50um", "delta1_curve"),
          "fig11": ("curve", "sigma1_p1", "sigma1_p2", "sigma2_p2", "sigma1_p3", "sigma2_p3", "sigma3_p3"),

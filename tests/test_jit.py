@@ -75,7 +75,9 @@ import asperity_sim as asim
 from asperity_sim import presets
 from asperity_sim.kernels.reach import bounds
 p = presets.R1.replace(mu=0.0)
-pop = asim.Population.sample(p, 3000, seed=3)
+n = 60  # heights from 0 to Delta_1 + beta, from arrays: no sampling kernel to compile twice
+pop = asim.Population.from_arrays(p, np.linspace(0.0, 12e-6 + p.beta, n), np.full(n, p.R_m),
+                                  np.linspace(0.1, 0.9, n), np.linspace(0.0, 6.0, n))
 d = np.array([12e-6, 0.0, 0.0])
 ev = asim.evaluate(pop, d)
 n_active, _ = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, d, np.empty(0))
