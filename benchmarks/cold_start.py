@@ -93,6 +93,16 @@ def main_job(cache: Path, outdir: Path) -> float:
     return time.perf_counter() - t0
 
 
+def machine() -> dict:
+    """What a record says of the machine it was taken on."""
+    return {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()}
+
+
+def head() -> str:
+    """The commit of this checkout."""
+    return subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+
+
 def against(commit: str, rounds: int, laws: list) -> dict:
     """Cold small runs of the code of ``commit`` and of this checkout, in turn (module docstring)."""
     times = {label: {law: [] for law in laws} for label in ("old", "new")}
@@ -123,10 +133,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.against:
         t0 = time.perf_counter()
-        record = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                              "platform": platform.platform(), "load": os.getloadavg()[0]},
-                  "new": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
-                                        text=True).stdout.strip(),
+        record = {"machine": {**machine(), "load": os.getloadavg()[0]}, "new": head(),
                   **against(a.against, a.rounds, a.laws.split(","))}
         record["wall_s"] = time.perf_counter() - t0
         OUT.mkdir(exist_ok=True)
@@ -135,9 +142,7 @@ def main(argv=None) -> int:
             print(f"{law}: median cold {record['median_cold_s']['old'][law]:.1f} s ({a.against}), {m:.1f} s (this checkout)")
         print(f"wrote {OUT / 'cold_start_against.json'}")
         return 0
-    record = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
-              "commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
-                                       text=True).stdout.strip()}
+    record = {"machine": machine(), "commit": head()}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="cold_start_") as tmp:
         for law in ("paper", "mdr"):
