@@ -11,6 +11,14 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
+if "PYTEST_XDIST_WORKER" in os.environ:
+    # The suite runs in two worker processes (pyproject.toml: -n 2) on a 2-core machine.  An idle thread
+    # of the package polls for work for a while before it sleeps (asperity_sim.threads); here it would poll
+    # on the core the other process needs, so the workers' threads sleep at once (set before the package
+    # is imported; the scripts the tests start inherit it).  The polling itself is tested in a process of
+    # its own (tests/test_threads.py).
+    os.environ.setdefault("ASPERITY_SIM_SPIN_US", "0")
+
 
 @pytest.fixture
 def run_script(tmp_path):

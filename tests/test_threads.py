@@ -6,6 +6,7 @@ are woken from sleep, outlast a long part, serve two callers and a forked child;
 chunks has the same bits on 1 and 2 threads.
 """
 
+import ast
 import os
 import subprocess
 import sys
@@ -18,7 +19,7 @@ import pytest
 
 from asperity_sim import Population, evaluate, presets
 from asperity_sim.atomics import fetch_add_acq_rel, post_each_then_wait, post_then_wait, wait_while
-from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, SPIN_US, claim, run_calls, run_chunks, uneven
+from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, claim, run_calls, run_chunks, uneven
 
 
 @numba.njit(nogil=True)
@@ -131,9 +132,12 @@ def test_claim_counts_up_from_zero_and_keeps_the_own_range_without_claims():
     assert claim(NO_CLAIMS, 99) == 99
 
 
+AWAKE_WORKER = """
+import threading, numba
+from asperity_sim.threads import SPIN_US, claim, run_calls
+
 @numba.njit(nogil=True)
-def _first_claim(claims, lo, hi):
-    """The first chunk this thread claims (-1: none), then the rest of them."""
+def first_claim(claims, lo, hi):
     first = -1
     for kk0 in range(lo, hi):
         kk = claim(claims, kk0)
@@ -143,25 +147,31 @@ def _first_claim(claims, lo, hi):
             first = kk
     return first
 
+caller, calls = threading.get_ident(), []
 
-@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2 or SPIN_US <= 0, reason="needs 2 threads that poll")
+def kernel(claims, lo, hi):
+    first = first_claim(claims, lo, hi)
+    if threading.get_ident() != caller:
+        calls[-1] = first
+
+assert SPIN_US > 0 and numba.get_num_threads() == 2
+for _ in range(60):
+    calls.append(None)
+    run_calls((kernel, 64, (), True))
+print(calls[20:])
+"""
+
+
 def test_an_awake_worker_claims_before_the_caller_starts():
     """The caller posts a claimed call with the GIL given up and starts its own part only once the worker has
-    claimed a chunk, so the worker, awake between calls, takes chunk 0 (without that it took it 30 us late)."""
-    caller, calls = threading.get_ident(), []
+    claimed a chunk, so the worker, awake between calls, takes chunk 0 (without that it took it 30 us late).
 
-    def kernel(claims, lo, hi):
-        first = _first_claim(claims, lo, hi)
-        if threading.get_ident() != caller:
-            calls[-1] = first
-
-    def run():
-        for _ in range(60):
-            calls.append(None)
-            run_calls((kernel, 64, (), True))
-
-    _with_threads(2, run)
-    worker_first = calls[20:]  # the worker's first claim in each call, once it polls between calls
+    In a process of its own with the default polling and two threads (the suite's worker processes
+    may run with ``ASPERITY_SIM_SPIN_US=0``: tests/conftest.py)."""
+    env = {k: v for k, v in os.environ.items() if k != SPIN_ENV} | {"NUMBA_NUM_THREADS": "2"}
+    run = subprocess.run([sys.executable, "-c", AWAKE_WORKER], env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    worker_first = ast.literal_eval(run.stdout.strip().splitlines()[-1])  # the worker's first claim in each call, once it polls
     assert None not in worker_first and worker_first.count(0) > 20, worker_first
 
 
