@@ -125,7 +125,8 @@ class _Workers:
                 _run_part(self.parts[t])
             except BaseException as e:  # noqa: BLE001 - handed to the caller, which raises it
                 self.errors[t] = e
-            self.parts[t] = None  # a served kernel's part has no caller waiting to free its arguments
+            # a served loop's part has no caller waiting to free its arguments (a run's population, say)
+            self.parts[t] = self.serving[t] = None
             said = self.caller_asleep[t]
             if said:
                 self.flags[done] = seen

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+import weakref
 
 import numba
 import numpy as np
@@ -19,7 +20,17 @@ import pytest
 
 from asperity_sim import Population, evaluate, presets
 from asperity_sim.atomics import fetch_add_acq_rel, post_each_then_wait, post_then_wait, wait_while
-from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, claim, run_calls, run_chunks, uneven
+from asperity_sim.threads import (
+    NO_CLAIMS,
+    SPIN_ENV,
+    Served,
+    claim,
+    next_post,
+    run_calls,
+    run_chunks,
+    said_done,
+    uneven,
+)
 
 
 @numba.njit(nogil=True)
@@ -396,3 +407,43 @@ def test_waiting_for_a_served_call_ends_when_the_workers_loop_has_stopped_withou
     assert not wait_served(flags, np.array([1]), 4, worker_flags, parts)
     flags[3 * LINE] = 4  # it did call 4
     assert wait_served(flags, np.array([1]), 4, worker_flags, parts)
+
+
+@numba.njit(nogil=True)
+def _counted(out, claims, lo, hi):
+    for kk0 in range(lo, hi):
+        kk = claim(claims, kk0)
+        if kk >= hi:
+            break
+        out[kk] += 1
+
+
+@numba.njit(nogil=True)
+def _serve_counted(out, scalars, flags, claims, polls, w, seen):
+    while True:
+        seen = next_post(flags, w, seen, polls)
+        if seen < 0:
+            return
+        _counted(out, claims, 0, int(scalars[0]))
+        said_done(flags, w, seen)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+def test_a_worker_keeps_no_served_arguments_once_its_loop_stops():
+    """A run's arrays (its population, say) are freed with the run: the worker forgets its loop's part and the
+    Served once the loop stops, whether it stopped on its own or a generic call stopped it."""
+    def served_call():
+        out = np.zeros(16, dtype=np.int64)
+        served = Served(_serve_counted, (out,), (np.array([16.0]),))
+        _with_threads(2, lambda: served.call(_counted, (out,), 16))
+        assert np.all(out == 1)
+        return weakref.ref(out)
+
+    for stop in ("idle", "generic"):
+        gone = served_call()
+        if stop == "generic":
+            _with_threads(2, lambda: run_calls((_claimed, 4, (np.zeros(4),), True)))
+        deadline = time.monotonic() + 10
+        while gone() is not None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert gone() is None, stop
