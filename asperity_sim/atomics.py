@@ -1,8 +1,7 @@
 """Atomic memory operations and polling without the GIL: what threads that wait awake are built from.
 
-Owns the intrinsics :func:`load_acquire`, :func:`store_release`, :func:`fetch_add` and
-:func:`compare_exchange` (one int64 element of a 1-D array, as an atomic load, store, add, or
-compare-and-swap), :func:`cpu_pause` and
+Owns the intrinsics :func:`load_acquire`, :func:`store_release` and :func:`fetch_add` (one
+int64 element of a 1-D array, as an atomic load, store, or add), :func:`cpu_pause` and
 :func:`cpu_yield`, and the two polling kernels :func:`wait_while` and :func:`post_then_wait` that
 :mod:`asperity_sim.threads` runs while a thread waits for another.  numba has no atomics of its
 own, and a plain load in a polling loop may be hoisted out of it by LLVM.
@@ -19,8 +18,7 @@ from numba.core import cgutils
 
 from .jit import kernel
 
-__all__ = ["load_acquire", "store_release", "fetch_add", "compare_exchange", "cpu_pause", "cpu_yield", "wait_while",
-           "post_then_wait"]
+__all__ = ["load_acquire", "store_release", "fetch_add", "cpu_pause", "cpu_yield", "wait_while", "post_then_wait"]
 
 
 def _int64_vector(flags) -> bool:
@@ -89,21 +87,6 @@ def fetch_add_acq_rel(typingctx, flags, i, value):
     """:func:`fetch_add` that also orders memory: what a thread wrote before it is visible to a thread that
     adds after it (the last of several threads to finish a piece of work reads what the others wrote)."""
     return _atomic_add(flags, i, value, "acq_rel")
-
-
-@numba.extending.intrinsic
-def compare_exchange(typingctx, flags, i, expected, value):
-    """``flags[i] = value`` if it equals ``expected``, as one atomic step (``lock cmpxchg``, ordered like
-    :func:`fetch_add_acq_rel`): the value before, so the exchange happened if that is ``expected``."""
-    if not _int64_vector(flags):
-        return None
-
-    def codegen(context, builder, signature, args):
-        pair = builder.cmpxchg(_element(context, builder, signature, args), _int64(context, builder, signature, args, 2),
-                               _int64(context, builder, signature, args, 3), "acq_rel", "acquire")
-        return builder.extract_value(pair, 0)
-
-    return numba.types.int64(flags, i, expected, value), codegen
 
 
 _PAUSE = "llvm.x86.sse2.pause" if platform.machine().lower() in ("x86_64", "amd64", "i686", "i386") else None

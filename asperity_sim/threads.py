@@ -42,21 +42,10 @@ import time
 import numba
 import numpy as np
 
-from .atomics import (
-    compare_exchange,
-    cpu_pause,
-    cpu_yield,
-    fetch_add,
-    load_acquire,
-    post_each_then_wait,
-    post_then_wait,
-    store_release,
-    wait_while,
-)
+from .atomics import fetch_add, post_each_then_wait, post_then_wait, wait_while
 from .jit import kernel
 
-__all__ = ["run_chunks", "run_calls", "chunks_of", "uneven", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV", "Served",
-           "next_post", "said_done"]
+__all__ = ["run_chunks", "run_calls", "chunks_of", "uneven", "claim", "NO_CLAIMS", "SPIN_US", "SPIN_ENV"]
 
 SPIN_ENV = "ASPERITY_SIM_SPIN_US"
 """Environment variable: how long [us] an idle thread polls for work before it sleeps (default 1000; 0: at once)."""
@@ -99,7 +88,6 @@ class _Workers:
         self.caller_asleep = [False] * (n + 1)
         self.finished = [threading.Semaphore(0) for _ in range(n + 1)]
         self.busy = threading.Lock()
-        self.serving: list = [None] * (n + 1)  # the Served whose loop worker t was last handed
         self.polls = max(1, int(_polls_per_us(self.flags) * SPIN_US)) if SPIN_US > 0 else 0
         self.caller_polls = [self.polls] * (n + 1)  # what the caller polls for worker t's done (_adapt)
         self.entry_polls = max(1, int(self.polls * ENTRY_US / SPIN_US)) if SPIN_US > 0 else 0
@@ -125,8 +113,6 @@ class _Workers:
                 _run_part(self.parts[t])
             except BaseException as e:  # noqa: BLE001 - handed to the caller, which raises it
                 self.errors[t] = e
-            # a served loop's part has no caller waiting to free its arguments (a run's population, say)
-            self.parts[t] = self.serving[t] = None
             said = self.caller_asleep[t]
             if said:
                 self.flags[done] = seen
@@ -151,7 +137,8 @@ class _Workers:
         posted = []
         for t, part in enumerate(parts[1:], start=1):
             if part:
-                epoch = self._free(t)
+                epoch = int(self.flags[LINE * 2 * t]) + 1
+                self._wait_done(t, epoch - 1)  # a caller interrupted (Ctrl-C) may have left it a part
                 self.errors[t], self.parts[t] = None, part
                 posted.append((t, epoch))
         if entered is not None and posted and self.entry_polls and not any(self.asleep[t] for t, _ in posted):
@@ -176,28 +163,6 @@ class _Workers:
                 e, self.errors[t] = self.errors[t], None
                 raise e
 
-    def _free(self, t: int) -> int:
-        """Worker t done with its last part (a served loop told to stop, a part a caller interrupted by Ctrl-C
-        left it): the number of its next part."""
-        if self.serving[t] is not None:
-            stop_served(self.serving[t].flags, t)
-            self.serving[t] = None
-        epoch = int(self.flags[LINE * 2 * t]) + 1
-        self._wait_done(t, epoch - 1)
-        return epoch
-
-    def serve(self, t: int, served, word: int) -> int:
-        """Hand worker t the loop of ``served`` (:class:`Served`), starting with call ``word`` already posted in
-        its word; the number of that part (its done flag says when the loop has stopped)."""
-        epoch = self._free(t)
-        self.errors[t], self.parts[t] = None, [(served.serve, served.args, t, word - 2)]
-        served.flags[LINE * 2 * t] = word
-        self.serving[t] = served
-        self.flags[LINE * 2 * t] = epoch
-        if self.asleep[t]:
-            self.waking[t].release()
-        return epoch
-
     def _wait_done(self, t: int, epoch: int) -> None:
         """Until worker t has said ``epoch`` done: awake for the polls, then asleep (a 1 ms nap at worst)."""
         done = LINE * (2 * t + 1)
@@ -213,121 +178,6 @@ class _Workers:
         finally:
             self.caller_asleep[t] = False
         self.caller_polls[t] = self._adapt(polls, time.perf_counter() - start)
-
-
-@kernel(nogil=True)
-def next_post(flags, w, seen, polls):
-    """The next call of a :class:`Served` kernel for worker w after call ``seen`` (its word ``flags[LINE * 2 w]``
-    is 2 e once call e is posted, odd once the worker has stopped serving): -1 once the caller stopped it, or
-    after ``polls`` polls with no call (the loop then stops, unless a call comes at that moment)."""
-    i = LINE * 2 * w
-    v = wait_while(flags, i, seen, polls)
-    if v == seen:  # no call yet: stop serving, unless one comes now (the exchange then fails and gives it)
-        v = compare_exchange(flags, i, seen, seen + 1)
-        if v == seen:
-            return -1
-    return -1 if v % 2 == 1 else v
-
-
-@kernel(inline="always")
-def said_done(flags, w, word):
-    """Worker w has done call ``word`` of a :class:`Served` kernel."""
-    store_release(flags, LINE * (2 * w + 1), word)
-
-
-@kernel(nogil=True)
-def post_served(flags, w, word):
-    """Post call ``word`` to worker w if it serves, waiting for the call before (True), else nothing (False)."""
-    return compare_exchange(flags, LINE * 2 * w, word - 2, word) == word - 2
-
-
-@kernel(nogil=True)
-def stop_served(flags, w):
-    """Tell worker w to stop serving (its word made odd), unless it has already stopped."""
-    i = LINE * 2 * w
-    v = load_acquire(flags, i)
-    while v % 2 == 0:
-        v_before = compare_exchange(flags, i, v, v + 1)
-        if v_before == v:
-            return
-        v = v_before
-
-
-@kernel(nogil=True)
-def wait_served(flags, ws, word, worker_flags, parts):
-    """Until each worker w in ``ws`` has done call ``word`` (they run compiled code and never sleep while they
-    serve), or its loop has stopped without it (its part ``parts[w]`` said done in ``worker_flags``): True if all
-    did it."""
-    all_done = True
-    for w in ws:
-        k = 0
-        while load_acquire(flags, LINE * (2 * w + 1)) != word:
-            if load_acquire(worker_flags, LINE * (2 * w + 1)) == parts[w]:
-                all_done = load_acquire(flags, LINE * (2 * w + 1)) == word
-                break
-            k += 1
-            if k % 32 == 0:
-                cpu_yield()
-            else:
-                cpu_pause()
-    return all_done
-
-
-class Served:
-    """A claimed kernel that the workers call from compiled code, call after call, without the GIL.
-
-    ``serve(*args, w, seen)`` is worker w's loop: :func:`next_post`, then the kernel on the arguments of
-    the call (those that change from call to call read from arrays in ``args`` that the caller writes
-    before each call), then :func:`said_done`, until :func:`next_post` says stop.  Between the calls
-    of a Newton loop the workers stay in that loop (for ``SPIN_US``), so a call costs no Python and no
-    GIL on their side: a worker that runs Python between calls needs the GIL back after its part,
-    while the caller holds it, and waits tens of microseconds for it (docs/performance.md).
-    """
-
-    def __init__(self, serve, fixed, inputs):
-        """``serve``'s arguments: ``fixed`` (the same every call), then ``inputs`` (arrays the caller writes the
-        arguments of each call into), then those of the loop (words, claims, polls, w, seen)."""
-        self.serve, self.fixed, self.inputs = serve, (*fixed, *inputs), inputs
-        self.claims = np.zeros(LINE, dtype=np.int64)[:1]
-        self.workers = None
-        self.flags = self.parts = self.args = None
-        self.word = 0
-        self.handed = 0  # loops handed to workers that were not serving (the rest of the calls were posted)
-
-    def _bind(self, workers) -> None:
-        """Words for the workers of this process (a forked child has new ones, none of them serving)."""
-        n = len(workers.parts)
-        self.flags = np.ones(LINE * 2 * n, dtype=np.int64)  # every word odd: nobody serves
-        self.flags[LINE::2 * LINE] = 0
-        self.parts = np.full(n, -1, dtype=np.int64)
-        self.args = (*self.fixed, self.flags, self.claims, workers.polls)
-        self.serve(*self.args, 0, -2)  # compiled here, not by a worker while this thread waits (returns at once)
-        self.workers, self.word = workers, 0
-
-    def call(self, kernel, args, n_chunks: int) -> None:
-        """``kernel(*args, claims, lo, hi)`` over chunks 0 .. n_chunks on every thread at once, the workers through
-        their loops (the arrays of the call already written)."""
-        threads = max(1, min(numba.get_num_threads(), n_chunks))
-        workers = _workers() if threads > 1 else None
-        if workers is None or not workers.busy.acquire(blocking=False):
-            kernel(*args, NO_CLAIMS, 0, n_chunks)
-            return
-        try:
-            if self.workers is not workers:
-                self._bind(workers)
-            word = self.word + 2
-            self.claims[0] = 0
-            for t in range(1, threads):
-                if not post_served(self.flags, t, word):  # not serving (stopped, or never started): handed again
-                    self.parts[t] = workers.serve(t, self, word)
-                    self.handed += 1
-            self.word = word
-            kernel(*args, self.claims, 0, n_chunks)
-            if not wait_served(self.flags, np.arange(1, threads), word, workers.flags, self.parts):
-                errors = [workers.errors[t] for t in range(1, threads) if workers.errors[t] is not None]
-                raise errors[0] if errors else RuntimeError("a worker stopped serving before its call was done")
-        finally:
-            workers.busy.release()
 
 
 def _polls_per_us(flags) -> float:

@@ -12,7 +12,6 @@ import subprocess
 import sys
 import threading
 import time
-import weakref
 
 import numba
 import numpy as np
@@ -20,17 +19,7 @@ import pytest
 
 from asperity_sim import Population, evaluate, presets
 from asperity_sim.atomics import fetch_add_acq_rel, post_each_then_wait, post_then_wait, wait_while
-from asperity_sim.threads import (
-    NO_CLAIMS,
-    SPIN_ENV,
-    Served,
-    claim,
-    next_post,
-    run_calls,
-    run_chunks,
-    said_done,
-    uneven,
-)
+from asperity_sim.threads import NO_CLAIMS, SPIN_ENV, claim, run_calls, run_chunks, uneven
 
 
 @numba.njit(nogil=True)
@@ -316,134 +305,3 @@ def test_workers_that_never_poll_still_run_every_part():
     env = {**os.environ, SPIN_ENV: "0", "NUMBA_NUM_THREADS": "2"}
     run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
-
-
-SERVED = """
-import os, sys, time, threading
-import numba, numpy as np
-from asperity_sim.threads import NO_CLAIMS, Served, claim, next_post, run_calls, said_done, _workers
-
-@numba.njit(nogil=True)
-def counted(out, who, me, claims, lo, hi):
-    for kk0 in range(lo, hi):
-        kk = claim(claims, kk0)
-        if kk >= hi:
-            break
-        out[kk] += 1
-        who[kk] = me
-
-@numba.njit(nogil=True)
-def serve(out, who, scalars, flags, claims, polls, w, seen):
-    while True:
-        seen = next_post(flags, w, seen, polls)
-        if seen < 0:
-            return
-        counted(out, who, w, claims, 0, int(scalars[0]))
-        said_done(flags, w, seen)
-
-out, who = np.zeros(64, dtype=np.int64), np.zeros(64, dtype=np.int64)
-served = Served(serve, (out, who), (np.zeros(1),))
-rng = np.random.default_rng(1)
-worker_chunks = calls = 0
-for i in range(300):
-    n = int(rng.integers(1, 64))
-    numba.set_num_threads(1 if i % 50 == 49 else 2)
-    out[:] = 0
-    who[:] = -1
-    served.inputs[0][0] = n
-    served.call(counted, (out, who, 0), n)
-    calls += numba.get_num_threads() == 2 and n > 1
-    assert np.all(out[:n] == 1) and np.all(out[n:] == 0), (i, n, out)
-    worker_chunks += int(np.count_nonzero(who[:n] == 1))
-    if i % 7 == 3:  # a generic call in between: the serving worker is stopped first
-        g = np.zeros(8, dtype=np.int64)
-        run_calls((counted, 8, (g, np.zeros(8, dtype=np.int64), 0), True))
-        assert np.all(g == 1)
-    if i % 11 == 5:
-        time.sleep(0.003)  # longer than the polling: the worker stops serving and is handed the loop again
-numba.set_num_threads(2)
-assert worker_chunks > 0
-polls = _workers().polls
-# polling, most calls find the worker serving (handed again only after a generic call or a sleep); without
-# polling, every call hands it the loop anew
-assert (served.handed < calls // 2) if polls else (served.handed == calls), (served.handed, calls)
-if hasattr(os, "fork"):
-    pid = os.fork()
-    if pid == 0:  # a child has workers of its own, none serving: the loop is handed to them anew
-        code = 1
-        try:
-            out[:] = 0
-            served.inputs[0][0] = 16
-            served.call(counted, (out, who, 0), 16)
-            code = 0 if np.all(out[:16] == 1) else 1
-        finally:
-            os._exit(code)
-    assert os.waitpid(pid, 0)[1] == 0
-print("ok", polls > 0)
-"""
-
-
-@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
-@pytest.mark.parametrize("spin", ["default", "0"])
-def test_a_served_kernel_does_every_chunk_once_between_sleeps_generic_calls_and_a_fork(spin):
-    """Served calls (the workers in a compiled loop between calls): every chunk once, the worker takes part,
-    whether it still serves, stopped on its own after its polls, was stopped by a generic call, or is a forked
-    child's; with the default polling and with none (every call hands the loop anew)."""
-    env = {k: v for k, v in os.environ.items() if k != SPIN_ENV} | {"NUMBA_NUM_THREADS": "2"}
-    if spin == "0":
-        env[SPIN_ENV] = "0"
-    run = subprocess.run([sys.executable, "-c", SERVED], env=env, capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr[-3000:]
-    assert run.stdout.split() == ["ok", str(spin == "default")]
-
-
-def test_waiting_for_a_served_call_ends_when_the_workers_loop_has_stopped_without_it():
-    """A worker whose loop stopped (its part said done) without doing the call: the wait ends, False."""
-    from asperity_sim.threads import LINE, wait_served
-
-    flags, worker_flags = np.zeros(4 * LINE, dtype=np.int64), np.zeros(4 * LINE, dtype=np.int64)
-    parts = np.array([0, 7])
-    worker_flags[3 * LINE] = 7  # worker 1 said part 7 done
-    assert not wait_served(flags, np.array([1]), 4, worker_flags, parts)
-    flags[3 * LINE] = 4  # it did call 4
-    assert wait_served(flags, np.array([1]), 4, worker_flags, parts)
-
-
-@numba.njit(nogil=True)
-def _counted(out, claims, lo, hi):
-    for kk0 in range(lo, hi):
-        kk = claim(claims, kk0)
-        if kk >= hi:
-            break
-        out[kk] += 1
-
-
-@numba.njit(nogil=True)
-def _serve_counted(out, scalars, flags, claims, polls, w, seen):
-    while True:
-        seen = next_post(flags, w, seen, polls)
-        if seen < 0:
-            return
-        _counted(out, claims, 0, int(scalars[0]))
-        said_done(flags, w, seen)
-
-
-@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
-def test_a_worker_keeps_no_served_arguments_once_its_loop_stops():
-    """A run's arrays (its population, say) are freed with the run: the worker forgets its loop's part and the
-    Served once the loop stops, whether it stopped on its own or a generic call stopped it."""
-    def served_call():
-        out = np.zeros(16, dtype=np.int64)
-        served = Served(_serve_counted, (out,), (np.array([16.0]),))
-        _with_threads(2, lambda: served.call(_counted, (out,), 16))
-        assert np.all(out == 1)
-        return weakref.ref(out)
-
-    for stop in ("idle", "generic"):
-        gone = served_call()
-        if stop == "generic":
-            _with_threads(2, lambda: run_calls((_claimed, 4, (np.zeros(4),), True)))
-        deadline = time.monotonic() + 10
-        while gone() is not None and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert gone() is None, stop

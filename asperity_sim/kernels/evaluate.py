@@ -169,12 +169,8 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
         n_rows = chunks_of(n_active, CHUNK)
         reduce = kern["reduce_parallel"]
         wait_for(reduce)
-        served = workspace.served(kern["serve_parallel"], (*pop.arrays, r_o, k_e, state.consts, tb, workspace.partial),
-                                  lambda: (np.zeros(3), np.zeros(3)))
-        scalars, delta = served.inputs
-        scalars[0], scalars[1], scalars[2] = n_active, tan_max, n_rows
-        delta[:] = d
-        served.call(reduce, (*pop.arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial), n_rows)
+        run_calls((reduce, n_rows, (*pop.arrays, n_active, d, r_o, k_e, state.consts, tb, tan_max, workspace.partial),
+                   True))
     else:
         n_active, tan_max = bounds(pop.r, pop.R_min, r_o, k_e, beta, d, EMPTY)
         n_pop = chunks_of(n_active, CHUNK)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import closure_and_slope, local_displacement
 from ..jit import template
-from ..threads import claim, next_post, said_done
+from ..threads import claim
 from ..vectormath import borrowed, copy_into
 from .contact import (
     accumulate,
@@ -169,20 +169,6 @@ def reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, delta, r_o, k_e, consts
             break
         chunk_any((kk * stride) % n_chunks, r, R, u, cos_phi, sin_phi, n_active, d1, d2, d3, closure, dc, k_e, consts,
                   theta_birth, tan_max, partial)
-
-
-@template(nogil=True, error_model="numpy")
-def serve_parallel(r, R, u, cos_phi, sin_phi, r_o, k_e, consts, theta_birth, partial, scalars, delta, flags, claims,
-                   polls, w, seen):
-    """Worker w's loop of :func:`reduce_parallel` calls (:class:`asperity_sim.threads.Served`): each call's
-    n_active, tan_max and chunk count in ``scalars``, its displacement in ``delta``, written by the caller."""
-    while True:
-        seen = next_post(flags, w, seen, polls)
-        if seen < 0:
-            return
-        reduce_parallel(r, R, u, cos_phi, sin_phi, int(scalars[0]), delta, r_o, k_e, consts, theta_birth, scalars[1],
-                        partial, claims, 0, int(scalars[2]))
-        said_done(flags, w, seen)
 
 
 @template(error_model="numpy")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..memory import reserve
-from ..threads import Served, chunks_of
+from ..threads import chunks_of
 from .layout import (
     CHUNK,
     EMPTY,
@@ -39,7 +39,6 @@ class Workspace:
     def __init__(self, n, index=True):
         self.n_chunks = n_chunks = chunks_of(n, CHUNK)
         self.partial = np.zeros((n_chunks, N_ACC))
-        self._served = self._served_key = None
         self.fresh = reserve((n_chunks, FRESH_ROW), OFFSET)  # written only where contacts are born (memory.reserve)
         self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
         self.fresh_key = None
@@ -108,14 +107,6 @@ class Workspace:
         self.n_box, self.tan_box = bounds(pop.r, pop.R_min, r_o, k_e, beta, corner, EMPTY)
         self.box_pop = None  # until the list is written
         return 1
-
-    def served(self, serve, fixed, inputs):
-        """The :class:`~asperity_sim.threads.Served` of kernel loop ``serve`` on the arguments ``fixed`` (arrays by
-        identity, numbers by value), kept while they stay the same; ``inputs`` makes its arrays of each call."""
-        key = (serve, *(id(a) if isinstance(a, np.ndarray) else a for a in fixed))
-        if self._served_key != key:
-            self._served, self._served_key = Served(serve, fixed, inputs()), key
-        return self._served
 
     def rows(self, m):
         """At least m rows of partial sums (grown when a history law has more slot chunks)."""
