@@ -28,7 +28,12 @@ record:
   compacted after the commit (rows refitted to need + s). The peak counts the holes a commit makes
   before its compaction;
 - ``stage``: ``relocate 0`` with each row sized at birth for the largest need its contact reaches
-  before the end of its stage (known only afterwards: an oracle no store has).
+  before the end of its stage (known only afterwards: an oracle no store has);
+- ``paged g``: pages of g springs (both directions) that never move: a slot's page table (2k / g
+  int32 entries, every slot) names its pages, a row takes ceil(need / g) pages, a row that grows
+  takes more, and the pages a commit frees (a lost contact, a row that coarsened) are reused from
+  the next commit on (a free list, one int32 per page). The peak counts the pages in use before a
+  commit plus those it takes, the page tables and the free list, in springs (16 B each).
 
 Run:   python benchmarks/spring_rows.py [--n 1000000] [--run-n 500000] [--record docs/results/whole_run_52ef0e9.json]
 Writes outputs/spring_rows.json.
@@ -163,6 +168,28 @@ def replay(needs, stages, stored, rows, slack=0, hole_fraction=0.05):
     return peak, compactions, moved
 
 
+def paged(needs, stored, g):
+    """Peak [springs] of a store of pages of g springs over the commits of ``needs`` (module docstring, ``paged g``),
+    page tables and free list included."""
+    size = max(a.size for a, _ in needs)
+    pages, owner = np.zeros(size, dtype=np.int64), np.full(size, -1, dtype=np.int64)
+    used = peak = slots = 0
+    for asp, need in needs:
+        m, live = asp.size, asp >= 0
+        same = owner[:m] == asp
+        new = np.where(live, -(-need // g), 0)
+        kept = np.where(same, pages[:m], 0)
+        taken = int(np.maximum(new - kept, 0).sum())
+        freed = int(pages[:m].sum() - np.minimum(new, kept).sum())
+        peak = max(peak, used + taken)  # what a commit frees is reused only from the next one
+        used += taken - freed
+        pages[:m], owner[:m] = new, asp
+        slots = max(slots, m)
+    table = slots * (stored // g) * 4  # int32 page numbers per slot [B]
+    free_list = peak * 4  # an int32 per page [B]
+    return peak * g + (table + free_list) / 16.0
+
+
 def move_cost(n, springs):
     """What the ``exact`` store's moves would cost: an in-place shift of ``springs`` float64 pairs (numpy's memmove, one
     thread), against the time per increment of an `mdr` run of the benchmark path at n asperities, both timed here."""
@@ -181,6 +208,7 @@ def move_cost(n, springs):
 
 
 STORES = (("fixed", 0), ("exact", 0), ("relocate", 0), ("relocate", 2), ("relocate", 4), ("stage", 0))
+PAGES = (2, 4, 8)
 
 
 def stores(n, record):
@@ -198,6 +226,10 @@ def stores(n, record):
         out[f"{rows} {slack}" if rows == "relocate" else rows] = {
             "peak_springs_per_contact": per_contact, "compactions": compactions, "moved_over_written": moved / written,
             "sizes": sizes}
+    for g in PAGES:
+        per_contact = paged(needs, stored, g) / contacts
+        out[f"paged {g}"] = {"peak_springs_per_contact": per_contact, "compactions": 0, "moved_over_written": 0.0,
+                             "sizes": with_rows_of(per_contact, stored, record)}
     return out
 
 

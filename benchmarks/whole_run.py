@@ -29,12 +29,18 @@ process, because absolute times drift on a shared machine):
 ``--one-thread`` adds item 1 on one thread: the increment scaling without the hand-offs to the
 other threads (what the fixed per-increment work of the Newton loop costs alone).
 
+``--split`` measures only item 1 for ``paper``, split into the time in the evaluations (the kernel
+calls with their thin Python) and the rest of the run (the predictor, the Newton loop, the commit
+and the recording, all Python): the increment scaling each part would have alone, that is what a
+Newton loop compiled with no Python cost left would reach at best (writes outputs/whole_run_split.json).
+
 ``--against COMMIT`` measures only item 1, for the code of COMMIT (a detached worktree in a
 temporary folder) and for this checkout, each in fresh processes, alternating ``--alternations``
 times: a change's effect read through the machine's drift (the medians of the processes are
 compared).
 
 Run:   python benchmarks/whole_run.py [--rounds 3] [--memory-sizes 1000000] [--thread-n 1000000] [--one-thread]
+       python benchmarks/whole_run.py --split [--rounds 9]
        python benchmarks/whole_run.py --against COMMIT [--alternations 3]
 Writes outputs/whole_run.json (``--against``: outputs/whole_run_against.json) and prints a table.
 About 3 minutes on 2 cores (2026-11-27); ``--against`` about 5 minutes.
@@ -141,6 +147,52 @@ def one_thread(sizes, rounds):
         return whole_runs(sizes, rounds, label="1 thread: ")
     finally:
         numba.set_num_threads(threads)
+
+
+def split(sizes, rounds):
+    """Item 1 for ``paper``, split: the time in the evaluations (``evaluate_unchecked``: the kernel calls and their
+    thin Python) and the rest of the run (predictor, Newton loop, commit, recording: Python), medians over
+    ``rounds`` runs after a first; the increment scaling of each part (``--split``)."""
+    from asperity_sim.solve import run as run_module
+
+    plain = run_module.evaluate_unchecked
+    spent = [0.0, 0]
+
+    def timed(*args):
+        t = time.perf_counter()
+        try:
+            return plain(*args)
+        finally:
+            spent[0] += time.perf_counter() - t
+            spent[1] += 1
+
+    out = {}
+    run_module.evaluate_unchecked = timed
+    try:
+        for name, make in PATHS.items():
+            path, res = make(), {}
+            for n in sizes:
+                pop = Population.sample(presets.R1, n, seed=1)
+                rows = []
+                for _ in range(rounds + 1):
+                    spent[:] = [0.0, 0]
+                    t, _ = run_time(pop, path, "paper")
+                    rows.append((t, spent[0], spent[1]))
+                whole, evaluations, calls = (float(np.median(c)) for c in zip(*rows[1:]))
+                res[str(n)] = {"whole_s": whole, "evaluations_s": evaluations, "rest_s": whole - evaluations,
+                               "evaluations": calls}
+                print(f"  split {name:9s} n = {n:>7d}: paper {1e3 * whole:.1f} ms, of which {1e3 * evaluations:.1f} ms in "
+                      f"{calls:.0f} evaluations and {1e3 * (whole - evaluations):.1f} ms the rest", flush=True)
+            lo, hi = str(min(sizes)), str(max(sizes))
+            res["increment_scaling"] = {part: res[hi][f"{part}_s"] / res[lo][f"{part}_s"]
+                                        for part in ("whole", "evaluations")}
+            print(f"  split {name:9s} time at n = {hi} over n = {lo}: whole run "
+                  f"{res['increment_scaling']['whole']:.2f}, evaluations alone {res['increment_scaling']['evaluations']:.2f}"
+                  " (target >= 8)", flush=True)
+            out[name] = res
+    finally:
+        run_module.evaluate_unchecked = plain
+    return out
 
 
 MEMORY = r"""
@@ -319,6 +371,8 @@ def main(argv=None):
     ap.add_argument("--alternations", type=int, default=3)
     ap.add_argument("--one-thread", action="store_true",
                     help="also item 1 on one thread (the increment scaling without hand-offs)")
+    ap.add_argument("--split", action="store_true",
+                    help="only item 1 for paper, split into the evaluations and the rest of the run")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.against:
@@ -333,6 +387,13 @@ def main(argv=None):
     warm = Population.sample(presets.R1, 2000, seed=0)
     for law in ("paper", "mdr"):  # compile, or load from the cache
         run_time(warm, bench_path(), law)
+    if args.split:
+        out["split"] = split([int(s) for s in args.sizes.split(",")], args.rounds)
+        out["wall_s"] = time.perf_counter() - t0
+        OUT.mkdir(exist_ok=True)
+        (OUT / "whole_run_split.json").write_text(json.dumps(out, indent=1))
+        print(f"wrote {OUT / 'whole_run_split.json'} ({out['wall_s']:.0f} s)")
+        return
     print("whole runs (from the call to the return):")
     out["whole_run"] = whole_runs([int(s) for s in args.sizes.split(",")], args.rounds)
     if args.one_thread:
