@@ -33,7 +33,12 @@ record:
   int32 entries, every slot) names its pages, a row takes ceil(need / g) pages, a row that grows
   takes more, and the pages a commit frees (a lost contact, a row that coarsened) are reused from
   the next commit on (a free list, one int32 per page). The peak counts the pages in use before a
-  commit plus those it takes, the page tables and the free list, in springs (16 B each).
+  commit plus those it takes, the page tables and the free list, in springs (16 B each);
+- ``paged g prepass``: the same, with each commit's pages freed and taken in a pass before it
+  writes (a contact's springs in contact follow from its converged overlap, before its springs
+  are computed), from a free list kept in the free pages themselves;
+- ``paged g inline k prepass``: the first k springs of every slot in place (every contact has
+  about k or more), pages only beyond them (a page table of k / g entries).
 
 Run:   python benchmarks/spring_rows.py [--n 1000000] [--run-n 500000] [--record docs/results/whole_run_52ef0e9.json]
 Writes outputs/spring_rows.json.
@@ -168,26 +173,28 @@ def replay(needs, stages, stored, rows, slack=0, hole_fraction=0.05):
     return peak, compactions, moved
 
 
-def paged(needs, stored, g):
-    """Peak [springs] of a store of pages of g springs over the commits of ``needs`` (module docstring, ``paged g``),
-    page tables and free list included."""
+def paged(needs, stored, g, inline=0, prepass=False):
+    """Peak [springs] of a store of pages of g springs over the commits of ``needs`` (module docstring, ``paged``),
+    page tables and free list included; ``inline``: springs every slot holds in place, pages only beyond them;
+    ``prepass``: the pages of a commit are freed and taken before it writes, from a free list kept in the free
+    pages themselves (no list, and what a commit frees it can take at once)."""
     size = max(a.size for a, _ in needs)
     pages, owner = np.zeros(size, dtype=np.int64), np.full(size, -1, dtype=np.int64)
     used = peak = slots = 0
     for asp, need in needs:
         m, live = asp.size, asp >= 0
         same = owner[:m] == asp
-        new = np.where(live, -(-need // g), 0)
+        new = np.where(live, -(-np.maximum(need - inline, 0) // g), 0)
         kept = np.where(same, pages[:m], 0)
         taken = int(np.maximum(new - kept, 0).sum())
         freed = int(pages[:m].sum() - np.minimum(new, kept).sum())
-        peak = max(peak, used + taken)  # what a commit frees is reused only from the next one
+        peak = max(peak, used + taken - (freed if prepass else 0))
         used += taken - freed
         pages[:m], owner[:m] = new, asp
         slots = max(slots, m)
-    table = slots * (stored // g) * 4  # int32 page numbers per slot [B]
-    free_list = peak * 4  # an int32 per page [B]
-    return peak * g + (table + free_list) / 16.0
+    table = slots * ((stored - inline) // g) * 4  # int32 page numbers per slot [B]
+    free_list = 0 if prepass else peak * 4  # an int32 per page [B]
+    return peak * g + slots * inline + (table + free_list) / 16.0
 
 
 def move_cost(n, springs):
@@ -208,7 +215,8 @@ def move_cost(n, springs):
 
 
 STORES = (("fixed", 0), ("exact", 0), ("relocate", 0), ("relocate", 2), ("relocate", 4), ("stage", 0))
-PAGES = (2, 4, 8)
+PAGES = ((2, 0, False), (4, 0, False), (8, 0, False), (4, 0, True), (4, K, True), (2, K, True))
+"""Paged stores replayed: (springs per page, springs held in place per slot, pre-pass)."""
 
 
 def stores(n, record):
@@ -226,10 +234,11 @@ def stores(n, record):
         out[f"{rows} {slack}" if rows == "relocate" else rows] = {
             "peak_springs_per_contact": per_contact, "compactions": compactions, "moved_over_written": moved / written,
             "sizes": sizes}
-    for g in PAGES:
-        per_contact = paged(needs, stored, g) / contacts
-        out[f"paged {g}"] = {"peak_springs_per_contact": per_contact, "compactions": 0, "moved_over_written": 0.0,
-                             "sizes": with_rows_of(per_contact, stored, record)}
+    for g, inline, prepass in PAGES:
+        per_contact = paged(needs, stored, g, inline, prepass) / contacts
+        name = f"paged {g}" + (f" inline {inline}" if inline else "") + (" prepass" if prepass else "")
+        out[name] = {"peak_springs_per_contact": per_contact, "compactions": 0, "moved_over_written": 0.0,
+                     "sizes": with_rows_of(per_contact, stored, record)}
     return out
 
 
