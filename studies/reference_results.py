@@ -112,7 +112,7 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "cold_start_1ecc267.json", "cold_start_dc5d572.json", "cold_start_against_46a8cec.json",
            "cold_start_against_46a8cec_mdr.json", "cold_start_against_1ecc267.json",
            "cold_start_against_1ecc267_paper.json", "same_numbers_inlining.md", "same_numbers_inlining.json",
-           "whole_run_split_fd564ad.json")
+           "whole_run_split_fd564ad.json", "whole_run_18a3582.json")
 
 
 def script_path(name: str) -> Path:
