@@ -377,37 +377,35 @@ def main(argv=None):
     t0 = time.perf_counter()
     if args.against:
         out = against(args.against, args.sizes, args.rounds, args.alternations)
-        out.update(wall_s=time.perf_counter() - t0, load=os.getloadavg()[0])
-        OUT.mkdir(exist_ok=True)
-        (OUT / "whole_run_against.json").write_text(json.dumps(out, indent=1))
-        print(f"wrote {OUT / 'whole_run_against.json'} ({out['wall_s']:.0f} s)")
-        return
+        out["load"] = os.getloadavg()[0]
+        return write(out, "whole_run_against.json", t0)
     out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
                        "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "k": K}
     warm = Population.sample(presets.R1, 2000, seed=0)
     for law in ("paper", "mdr"):  # compile, or load from the cache
         run_time(warm, bench_path(), law)
+    sizes = [int(s) for s in args.sizes.split(",")]
     if args.split:
-        out["split"] = split([int(s) for s in args.sizes.split(",")], args.rounds)
-        out["wall_s"] = time.perf_counter() - t0
-        OUT.mkdir(exist_ok=True)
-        (OUT / "whole_run_split.json").write_text(json.dumps(out, indent=1))
-        print(f"wrote {OUT / 'whole_run_split.json'} ({out['wall_s']:.0f} s)")
-        return
+        out["split"] = split(sizes, args.rounds)
+        return write(out, "whole_run_split.json", t0)
     print("whole runs (from the call to the return):")
-    out["whole_run"] = whole_runs([int(s) for s in args.sizes.split(",")], args.rounds)
+    out["whole_run"] = whole_runs(sizes, args.rounds)
     if args.one_thread:
-        out["whole_run_one_thread"] = one_thread([int(s) for s in args.sizes.split(",")], args.rounds)
+        out["whole_run_one_thread"] = one_thread(sizes, args.rounds)
     print("peak memory (fresh processes, sampling included):")
     out["memory"] = memory([int(s) for s in args.memory_sizes.split(",") if s])
     print("threads:")
     out["threads"] = threads(args.thread_n, args.rounds)
     out["machine"]["load_end"] = os.getloadavg()[0]
+    write(out, "whole_run.json", t0)
+
+
+def write(out, name, t0):
+    """``out``, with the benchmark's wall time since ``t0``, to outputs/``name``."""
     out["wall_s"] = time.perf_counter() - t0
     OUT.mkdir(exist_ok=True)
-    (OUT / "whole_run.json").write_text(json.dumps(out, indent=1))
-    print(f"wrote {OUT / 'whole_run.json'} ({out['wall_s']:.0f} s)")
-
+    (OUT / name).write_text(json.dumps(out, indent=1))
+    print(f"wrote {OUT / name} ({out['wall_s']:.0f} s)")
 
 if __name__ == "__main__":
     main()
