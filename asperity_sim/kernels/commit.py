@@ -41,8 +41,6 @@ from .layout import (
     G_R,
     N_COMMIT,
     N_GEO,
-    N_SLOT_GEO,
-    SLOT_GEO_ROWS,
     chunk_stride,
 )
 from .reach import may_touch_follow
@@ -81,14 +79,13 @@ def each_commit(dn, dds, ddt, R, dn_c, b0, m, live, consts, arrays, scratch, res
 
 @template(nogil=True, error_model="numpy")
 def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-                 theta_birth, n_store, partial, slot_geo, by_slot, done, claims, kk_lo, kk_hi):
+                 theta_birth, n_store, partial, by_slot, done, claims, kk_lo, kk_hi):
     """Commit the committed contacts of chunks kk_lo .. kk_hi (strided order, claimed) at the converged ``delta``; sums
     (N_COMMIT) per chunk into ``partial``.
 
     A contact that is lost is released by the law, its slot freed (asp = -1) and its flag cleared.
-    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass`, or
-    read from ``slot_geo`` when a trial at ``delta`` on this committed state left it there (not
-    empty; the same bits).
+    Under policy follow the geometry of a block of slots is computed as in :func:`slot_pass` (the same
+    bits as the trial at ``delta``; a trial keeps none of it for the commit: 32 B per contact).
 
     By blocks (``done`` not empty: a chunk count per chunk): the pieces claimed are the blocks of
     BLOCK slots of each chunk in turn (BLOCKS_PER_CHUNK, the last maybe empty), so that a few
@@ -96,12 +93,11 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
     ``by_slot`` (:func:`slot_sums`), and the thread that finishes a chunk's last block adds them up
     in slot order: the same sums, the same bits, as chunk by chunk.
     """
-    asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo, by_slot = borrowed(
-        (asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo, by_slot))
+    asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, by_slot = borrowed(
+        (asp, dn_c, code, flag, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, by_slot))
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
-    known = slot_geo.shape[1] > 0
     n_chunks = (n_slots + CHUNK - 1) // CHUNK
     stride = chunk_stride(n_chunks)  # slots follow the heights: spread the large contacts over the threads
     blocks = done.size > 0
@@ -130,10 +126,6 @@ def commit_slots(asp, n_slots, dn_c, code, flag, r, R, u, cos_phi, sin_phi, delt
                     geo[G_DN, i], _, _ = local_displacement(d1 - r[j], d2, d3, ct, st, cp, sp)
                     _, geo[G_DDS, i], geo[G_DDT, i] = local_displacement(D0, D1, D2, ct, st, cp, sp)
                     geo[G_R, i] = R[j]
-            elif known:
-                for a in range(N_SLOT_GEO):
-                    for i in range(m):
-                        geo[SLOT_GEO_ROWS[a], i] = slot_geo[a, b0 + i]
             else:
                 gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
                 for i in range(m):  # vectorised

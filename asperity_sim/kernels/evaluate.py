@@ -185,8 +185,7 @@ def at_contacts(pop, d, state, workspace) -> Evaluation:
                    workspace.box, workspace.n_box, workspace.tan_box), True)]
         if n_slot:  # one hand-off for both passes (different rows); the costly chunks claimed first, the cheap even out
             calls.insert(0, (kern["slot_pass"], n_slot, (state.asp, state.n_slots, state.dn_c, *pop.arrays, d,
-                          state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:],
-                          workspace.slot_rows(state.n_slots)), True))
+                          state.delta_c, r_o, k_e, state.consts, state.arrays, tb, partial[n_pop:]), True))
         run_calls(*calls)
         workspace.trials_by_index[index] += 1
         if index == 1:

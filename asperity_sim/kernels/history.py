@@ -39,9 +39,7 @@ from .layout import (
     I_TH,
     N_ACC,
     N_GEO,
-    N_SLOT_GEO,
     N_VAL,
-    SLOT_GEO_ROWS,
     chunk_stride,
 )
 from .reach import may_touch_follow, may_touch_within
@@ -71,19 +69,17 @@ def trial_block(dn, dds, ddt, R, dn_c, b0, m, consts, arrays, out):
 
 @template(nogil=True, error_model="numpy")
 def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o, k_e, consts, arrays,
-              theta_birth, partial, slot_geo, claims, kk_lo, kk_hi):
+              theta_birth, partial, claims, kk_lo, kk_hi):
     """Rows of ``partial``: the committed contacts at the trial displacement, from their history (read only).
 
     Chunks kk_lo .. kk_hi of the strided order (:func:`chunk_stride`), claimed (:func:`asperity_sim.threads.claim`).
 
     Under policy follow, per block of BLOCK slots: their inputs gathered contiguous, their
     geometry in a loop that LLVM vectorises (:func:`slot_geometry`), the law's trial per contact,
-    then their global force and tangent in a vectorised loop and the sums in slot order.  The
-    geometry the law needs (delta_n, the increment, R) is left in ``slot_geo`` (N_SLOT_GEO, >=
-    n_slots), for a commit at this displacement (:func:`commit_slots`).
+    then their global force and tangent in a vectorised loop and the sums in slot order.
     """
-    asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo = borrowed(
-        (asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial, slot_geo))  # no reference counts
+    asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial = borrowed(
+        (asp, dn_c, r, R, u, cos_phi, sin_phi, arrays, theta_birth, partial))  # no reference counts
     d1, d2, d3 = delta[0], delta[1], delta[2]
     D0, D1, D2 = d1 - delta_c[0], d2 - delta_c[1], d3 - delta_c[2]
     closure, dc = closure_and_slope(r_o, d1)
@@ -122,9 +118,6 @@ def slot_pass(asp, n_slots, dn_c, r, R, u, cos_phi, sin_phi, delta, delta_c, r_o
             gather_slots(geo, asp, b0, m, d1, r, R, u, cos_phi, sin_phi)
             for i in range(m):  # vectorised
                 slot_geometry(geo, i, d2, d3, D0, D1, D2, closure, dc, k_e)
-            for a in range(N_SLOT_GEO):
-                for i in range(m):
-                    slot_geo[a, b0 + i] = geo[SLOT_GEO_ROWS[a], i]
             trial_block(geo[G_DN], geo[G_DDS], geo[G_DDT], geo[G_R], dn_c, b0, m, consts, arrays, out)  # the law
             for i in range(m):  # vectorised
                 slot_values(vals, i, geo, out)

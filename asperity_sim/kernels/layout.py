@@ -125,9 +125,6 @@ N_IN = 5
 # sin phi, R, u), then delta_n, delta_s, the local increment (normal, s, t), cos/sin theta, theta, d theta/d Delta_1
 G_X, G_CP, G_SP, G_R, G_U, G_DN, G_DS, G_RHO, G_DDS, G_DDT, G_CT, G_ST, G_TH, G_TH1 = range(14)
 N_GEO = 14
-# what a commit needs of that geometry, left by the trial per slot: delta_n, the increment (s, t), R
-SLOT_GEO_ROWS = (G_DN, G_DDS, G_DDT, G_R)
-N_SLOT_GEO = len(SLOT_GEO_ROWS)
 
 
 # layout of one row of commit sums: work, stored energy, dissipation, law events, transitions (4 x 4)
@@ -142,6 +139,5 @@ N_BY_SLOT = 5
 
 EMPTY = np.empty(0)
 EMPTY_INDEX = np.zeros(0, dtype=np.int32)
-EMPTY_SLOT_GEO = np.zeros((N_SLOT_GEO, 0))
 EMPTY_COUNTS = np.zeros(0, dtype=np.int64)
 EMPTY_BY_SLOT = np.zeros((N_BY_SLOT, 0))

@@ -48,7 +48,6 @@ from .layout import (
     EMPTY,
     EMPTY_BY_SLOT,
     EMPTY_COUNTS,
-    EMPTY_SLOT_GEO,
     N_BY_SLOT,
     N_COMMIT,
     OFFSET,
@@ -147,7 +146,7 @@ class ContactState:
         (asperities below the height bound, from the trial) is recomputed when not given.
         ``workspace``: the :class:`~asperity_sim.kernels.evaluate.Workspace` of the trials; if the last
         one was made at ``delta``, the search for contacts born in this increment looks only
-        where it found them, and the geometry of the committed contacts is the one it left.
+        where it found them.
         """
         pop, p = self.pop, self.pop.params
         delta = np.asarray(delta, dtype=float)
@@ -156,8 +155,7 @@ class ContactState:
         if self.has_history:
             n_active_h, tan_max = bounds(pop.r, pop.R_min, p.r_o, p.k_e, p.beta, delta, EMPTY)
             listed = None if workspace is None else workspace.fresh_contacts(delta, self)
-            geo = EMPTY_SLOT_GEO if workspace is None else workspace.slot_geometry(delta, self)
-            result = self._commit_history(delta, n_active_h, tan_max, tb, listed, geo)
+            result = self._commit_history(delta, n_active_h, tan_max, tb, listed)
             self.serial += 1
         if self.theta_birth is not None:
             if n_active is None:
@@ -166,7 +164,7 @@ class ContactState:
         self.delta_c = delta.copy()
         return result
 
-    def _commit_history(self, delta, n_active, tan_max, tb, listed, geo) -> CommitResult:
+    def _commit_history(self, delta, n_active, tan_max, tb, listed) -> CommitResult:
         pop, p = self.pop, self.pop.params
         kern = kernels(self.law, birth=tb.size > 0)
         n_slot_chunks = chunks_of(self.n_slots, CHUNK)
@@ -179,7 +177,7 @@ class ContactState:
             pieces, by_slot, done = self._pieces(self.n_slots)
             run_calls((kern["commit_slots"], pieces, (self.asp, self.n_slots, self.dn_c, self.code, self.flag,
                        *pop.arrays, delta, self.delta_c, p.r_o, p.k_e, self.consts, self.arrays, tb, self.n_stored,
-                       self._partial, geo, by_slot, done), True))
+                       self._partial, by_slot, done), True))
             sums += self._partial[:n_slot_chunks].sum(axis=0)
         if listed is not None and int(listed[1][:n_pop_chunks].max(initial=0)) > listed[0].shape[1]:
             listed = None  # a chunk had more contacts born than its row of the list holds

@@ -1,7 +1,7 @@
 """Preallocated arrays of the evaluations of one population, and what a trial leaves for its commit.
 
 Owns :class:`Workspace`: the rows of partial sums, and, for a history law, the fresh contacts
-a trial found, the geometry of its committed contacts and the index of the asperities that may
+a trial found and the index of the asperities that may
 touch in a box of displacements around the path (:meth:`Workspace.fresh_index`).
 """
 
@@ -14,10 +14,8 @@ from ..threads import chunks_of
 from .layout import (
     CHUNK,
     EMPTY,
-    EMPTY_SLOT_GEO,
     FRESH_ROW,
     N_ACC,
-    N_SLOT_GEO,
     OFFSET,
 )
 from .reach import bounds
@@ -27,8 +25,8 @@ class Workspace:
     """Preallocated partial-sum rows for one population (a Newton iteration allocates nothing).
 
     A history law's trial also leaves here, for a commit at its displacement, its fresh contacts
-    (``fresh``, ``n_fresh``: offsets per chunk), the geometry of its committed contacts (``slot_geo``,
-    policy follow) and the displacement and committed state it was made at (``fresh_key``).  The
+    (``fresh``, ``n_fresh``: offsets per chunk) and the displacement and committed state it was made at
+    (``fresh_key``).  The
     workspace also keeps an index of the asperities that may touch in a box of displacements
     around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
     only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
@@ -42,7 +40,6 @@ class Workspace:
         self.fresh = reserve((n_chunks, FRESH_ROW), OFFSET)  # written only where contacts are born (memory.reserve)
         self.n_fresh = np.zeros(n_chunks, dtype=np.int64)
         self.fresh_key = None
-        self.slot_geo = np.zeros((N_SLOT_GEO, 0))
         self.index = bool(index)
         self.listed = self.n_listed = None  # allocated by the first history-law trial
         self.box = np.zeros((2, 3))
@@ -63,17 +60,6 @@ class Workspace:
     def fresh_contacts(self, delta, state):
         """(fresh, n_fresh): the fresh contacts of the last trial if it was made at ``delta`` on ``state``, else None."""
         return (self.fresh, self.n_fresh) if self.made_at(delta, state) else None
-
-    def slot_geometry(self, delta, state):
-        """The slot geometry of the last trial if it was made at ``delta`` on ``state`` (policy follow), else empty."""
-        return self.slot_geo if self.made_at(delta, state) and state.theta_birth is None else EMPTY_SLOT_GEO
-
-    def slot_rows(self, n_slots):
-        """The slot geometry array, for as many slots as the population has asperities (reserved: only the slots
-        in use cost memory, :func:`asperity_sim.memory.reserve`)."""
-        if self.slot_geo.shape[1] < n_slots:
-            self.slot_geo = reserve((N_SLOT_GEO, max(self.n_chunks * CHUNK, n_slots)))
-        return self.slot_geo
 
     def fresh_index(self, pop, d, delta_c, n_active):
         """How a history-law trial at ``d`` finds its fresh contacts: ``index`` of :func:`fresh_pass` (0, 1, 2).
