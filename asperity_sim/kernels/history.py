@@ -160,7 +160,8 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
     ``index`` 0: every asperity below n_active is tested.  1: the same, and every asperity
     below ``n_box`` that may touch somewhere in ``box`` (2, 3; :func:`may_touch_within`, with
     ``tan_box`` the angle bound there), committed or not, is listed in ``listed``: chunk ic's
-    from position ic CHUNK on, in order, their count in ``n_listed[ic]``.  2: only the listed
+    from position ic CHUNK on, in order, as offsets from ic CHUNK (``OFFSET``: half the memory of an
+    index), their count in ``n_listed[ic]``.  2: only the listed
     asperities are tested (the caller checked that the box holds delta).  The same asperities
     touch in the same order, so the sums have the same bits whatever the index.  Chunks kk_lo .. kk_hi of
     the strided order over :func:`scan_chunks`, claimed (:func:`asperity_sim.threads.claim`).
@@ -190,7 +191,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
             n_it = min(n_box if index == 1 else n_active, lo + CHUNK) - lo
         m = 0
         for t in range(n_it):
-            j = listed[lo + t] if index == 2 else lo + t
+            j = lo + listed[lo + t] if index == 2 else lo + t
             if index == 1:
                 cp, sp = cos_phi[j], sin_phi[j]
                 s_hi = max(cp * box[0, 1], cp * box[1, 1]) + max(sp * box[0, 2], sp * box[1, 2])
@@ -198,7 +199,7 @@ def fresh_pass(flag, n_active, r, R, u, cos_phi, sin_phi, delta, delta_c, delta_
                 if not may_touch_within(box[1, 0] - r[j], s_hi, 1.0 - k_e * c_lo * inv_R, 1.0 - k_e * c_hi * inv_R,
                                         u[j] * (2.0 / math.pi), tan_box):
                     continue
-                listed[lo + m] = j
+                listed[lo + m] = j - lo
                 m += 1
             if j >= hi or flag[j]:
                 continue

@@ -18,7 +18,7 @@ import numpy as np
 from ..jit import kernel
 
 CHUNK = 2048
-OFFSET = np.int16  # an asperity's place in its chunk (lists of contacts born): CHUNK must stay below 2**15
+OFFSET = np.int16  # an asperity's place in its chunk (lists of contacts born, of asperities near the path): CHUNK < 2**15
 FRESH_ROW = 512  # a trial lists up to this many contacts born per chunk (beyond: the commit searches the chunk)
 BIRTH = False
 """The angle policy a template is compiled for (True: birth, False: follow): a placeholder bound per copy by
@@ -138,6 +138,6 @@ N_BY_SLOT = 5
 
 
 EMPTY = np.empty(0)
-EMPTY_INDEX = np.zeros(0, dtype=np.int32)
+EMPTY_INDEX = np.zeros(0, dtype=OFFSET)
 EMPTY_COUNTS = np.zeros(0, dtype=np.int64)
 EMPTY_BY_SLOT = np.zeros((N_BY_SLOT, 0))

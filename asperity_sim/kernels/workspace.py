@@ -73,7 +73,7 @@ class Workspace:
         if not self.index:
             return 0
         if self.listed is None or self.listed.size < pop.n:
-            self.listed = reserve(self.n_chunks * CHUNK, np.int32)  # written up to n_listed
+            self.listed = reserve(self.n_chunks * CHUNK, OFFSET)  # offsets in the chunk, written up to n_listed
             self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
             self.box_pop = None
         if self.box_pop is pop and n_active <= self.n_box:
