@@ -82,18 +82,29 @@ def paged_store(w, inline, shuffle):
     return np.ascontiguousarray(w[:, :, :inline]), table, np.ascontiguousarray(pages.reshape(-1, 2, G))
 
 
+@numba.njit(inline="always")
+def ask_ahead(w, i):
+    """The law's prefetch: the first cache lines of both components of the row AHEAD contacts on."""
+    if i + AHEAD < w.shape[0]:
+        for a in range(2):
+            prefetch(w, i + AHEAD, a, 0)
+            prefetch(w, i + AHEAD, a, 16)
+
+
+@numba.njit(inline="always")
+def keep(out, i, r):
+    """Column i of ``out``: F_s, F_t, J11, J12 and the slipping springs of :func:`committed_springs_scaled`."""
+    out[0, i], out[1, i], out[2, i], out[3, i], out[4, i] = r[0], r[1], r[3], r[4], r[9]
+
+
 @numba.njit(fastmath={"reassoc", "contract"}, error_model="numpy")
 def trial_fixed(dn, dds, ddt, dn_c, R, h, w, consts, out):
     E_star, lam, mu = consts
     for i in range(dn.size):
-        if i + AHEAD < dn.size:
-            for a in range(2):
-                prefetch(w, i + AHEAD, a, 0)
-                prefetch(w, i + AHEAD, a, 16)
+        ask_ahead(w, i)
         c, q, f_n, k_n, n_in, rho, drho, n_c, _, _ = contact_scales(dn[i], dn_c[i], R[i], h[i], E_star, lam)
-        r = committed_springs_scaled(dn[i], dds[i], ddt[i], dn_c[i], lam, mu, w[i], c, q, f_n, k_n, n_in, rho, drho,
-                                     n_c)
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i] = r[0], r[1], r[3], r[4], r[9]
+        keep(out, i, committed_springs_scaled(dn[i], dds[i], ddt[i], dn_c[i], lam, mu, w[i], c, q, f_n, k_n, n_in,
+                                              rho, drho, n_c))
 
 
 @numba.njit(fastmath={"reassoc", "contract"}, error_model="numpy")
@@ -104,10 +115,7 @@ def trial_paged(dn, dds, ddt, dn_c, R, h, w_in, table, pages, stored, consts, ou
     buf = np.zeros((2, stored))
     gathered = 0
     for i in range(dn.size):
-        if i + AHEAD < dn.size:
-            for a in range(2):
-                prefetch(w_in, i + AHEAD, a, 0)
-                prefetch(w_in, i + AHEAD, a, 16)
+        ask_ahead(w_in, i)
         c, q, f_n, k_n, n_in, rho, drho, n_c, _, _ = contact_scales(dn[i], dn_c[i], R[i], h[i], E_star, lam)
         w = w_in[i]
         if n_in > inline:  # the loops read up to the whole vectors of the continuing springs, or n_in
@@ -133,7 +141,7 @@ def trial_paged(dn, dds, ddt, dn_c, R, h, w_in, table, pages, stored, consts, ou
         else:  # a second call site: with one, fed either row, the loops ran 1.3-1.4 times slower
             r = committed_springs_scaled(dn[i], dds[i], ddt[i], dn_c[i], lam, mu, w, c, q, f_n, k_n, n_in, rho, drho,
                                          n_c)
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i] = r[0], r[1], r[3], r[4], r[9]
+        keep(out, i, r)
     return gathered
 
 
