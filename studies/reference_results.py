@@ -115,7 +115,9 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_split_fd564ad.json", "whole_run_18a3582.json", "whole_run_against_f1d9e88.json",
            "same_numbers_geometry.md", "same_numbers_geometry.json", "same_numbers_geometry_exact.md",
            "same_numbers_geometry_exact.json", "whole_run_ec61720.json", "spring_gather.json",
-           "whole_run_against_ec61720.json", "whole_run_55581aa.json", "cold_start_against_f1d9e88.json")
+           "whole_run_against_ec61720.json", "whole_run_55581aa.json", "cold_start_against_f1d9e88.json",
+           "same_numbers_1cf19ed.md", "same_numbers_1cf19ed.json", "same_numbers_1cf19ed_exact.md",
+           "same_numbers_1cf19ed_exact.json")
 
 
 def script_path(name: str) -> Path:
