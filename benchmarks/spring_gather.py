@@ -26,35 +26,30 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numba
 import numpy as np
 
-from asperity_sim import Population, paths, presets, simulate
+from asperity_sim import paths
+from asperity_sim.laws.mdr.blocks import AHEAD
 from asperity_sim.laws.mdr.springs import LANES
 from asperity_sim.laws.mdr.trial import committed_springs_scaled, contact_scales
-from asperity_sim.solve import run_checkpoint
 from asperity_sim.vectormath import prefetch
 
-from whole_run import K, bench_path
+from spring_rows import end_state, normal_stage
+from whole_run import K
 
 ROOT = Path(__file__).resolve().parent.parent
 G = 4  # springs per page
-AHEAD = 4  # the law's prefetch distance (asperity_sim.laws.mdr.blocks.AHEAD)
-STATES = {"history, end of normal stage": lambda: paths.LoadPath((bench_path().stages[0],), name="normal stage"),
-          "Fig. 13, end": lambda: paths.constant_normal_shear(500e6, 30e-6)}
+STATES = {"history, end of normal stage": normal_stage, "Fig. 13, end": lambda: paths.constant_normal_shear(500e6, 30e-6)}
 
 
 def contacts_of(path, n):
-    """(w, h, dn_c, R, consts) of the live contacts of an `mdr` run of ``path`` at its end (the checkpoint's state)."""
-    pop = Population.sample(presets.R1, n, seed=1)
-    with tempfile.TemporaryDirectory() as tmp:
-        ckpt = Path(tmp) / "state.ckpt"
-        ds = simulate(presets.R1, path, population=pop, law="mdr", k=K, checkpoint=ckpt)
-        a = run_checkpoint.read(ckpt).arrays
+    """(w, h, dn_c, R, consts, steps) of the live contacts of an `mdr` run of ``path`` at its end (the checkpoint's
+    state), and the run's steps."""
+    pop, a, ds = end_state(path, n)
     live = a["state_asp"] >= 0
     E_star, lam, mu = pop.params.E_star, pop.params.lam, pop.params.mu
     return (np.ascontiguousarray(a["state_law0"][live]), a["state_law1"][live].copy(), a["state_dn_c"][live].copy(),

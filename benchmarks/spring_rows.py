@@ -65,15 +65,25 @@ ROOT = Path(__file__).resolve().parent.parent
 GRANULARITIES = (1, 2, 4, 8)
 
 
-def normal_stage_springs(n: int, k: int = K):
-    """(N per contact, springs stored per contact) at the end of the normal stage of the benchmark path, n asperities."""
-    normal = bench_path().stages[0]
-    path = paths.LoadPath((normal,), name="normal stage of the history benchmark")
+def normal_stage():
+    """The normal stage of the history benchmark's path, alone: where the spring rows fill."""
+    return paths.LoadPath((bench_path().stages[0],), name="normal stage of the history benchmark")
+
+
+def end_state(path, n: int, k: int = K):
+    """(population, committed state arrays, Dataset) of an `mdr` run of ``path`` on n asperities (seed 1): the state
+    read from the run's checkpoint, written at the end of its last stage."""
     pop = Population.sample(presets.R1, n, seed=1)
     with tempfile.TemporaryDirectory() as tmp:
-        ckpt = Path(tmp) / "normal.ckpt"
-        simulate(presets.R1, path, population=pop, law="mdr", k=k, checkpoint=ckpt)  # written at the stage's end
+        ckpt = Path(tmp) / "state.ckpt"
+        ds = simulate(presets.R1, path, population=pop, law="mdr", k=k, checkpoint=ckpt)
         arrays = run_checkpoint.read(ckpt).arrays
+    return pop, arrays, ds
+
+
+def normal_stage_springs(n: int, k: int = K):
+    """(N per contact, springs stored per contact) at the end of the normal stage of the benchmark path, n asperities."""
+    pop, arrays, _ = end_state(normal_stage(), n, k)
     asp, w = arrays["state_asp"], arrays["state_law0"]
     live = asp >= 0
     return springs_in_contact(arrays["state_dn_c"][live], arrays["state_law1"][live], pop.R[asp[live]]), w.shape[-1]

@@ -407,5 +407,6 @@ def write(out, name, t0):
     (OUT / name).write_text(json.dumps(out, indent=1))
     print(f"wrote {OUT / name} ({out['wall_s']:.0f} s)")
 
+
 if __name__ == "__main__":
     main()

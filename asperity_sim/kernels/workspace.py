@@ -1,8 +1,8 @@
 """Preallocated arrays of the evaluations of one population, and what a trial leaves for its commit.
 
 Owns :class:`Workspace`: the rows of partial sums, and, for a history law, the fresh contacts
-a trial found and the index of the asperities that may
-touch in a box of displacements around the path (:meth:`Workspace.fresh_index`).
+a trial found and the index of the asperities that may touch in a box of displacements around
+the path (:meth:`Workspace.fresh_index`).
 """
 
 from __future__ import annotations
@@ -26,9 +26,8 @@ class Workspace:
 
     A history law's trial also leaves here, for a commit at its displacement, its fresh contacts
     (``fresh``, ``n_fresh``: offsets per chunk) and the displacement and committed state it was made at
-    (``fresh_key``).  The
-    workspace also keeps an index of the asperities that may touch in a box of displacements
-    around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
+    (``fresh_key``).  The workspace also keeps an index of the asperities that may touch in a box of
+    displacements around the path (``listed``; :meth:`fresh_index`), so that a trial inside the box tests
     only those; ``index=False`` turns it off (every trial tests every asperity that can touch).
     """
 
