@@ -1,0 +1,222 @@
+"""What a Newton loop compiled whole would leave of a `paper` run's evaluations (issue 37, target 2).
+
+The increment scaling of `paper` (time per increment at n = 500 000 over n = 50 000, target >= 8)
+is held back by work that does not grow with n: the Python of the Newton loop, and for each
+evaluation its own Python and the hand-off of its chunks to the other thread. ``whole_run.py
+--split`` takes away the first (the evaluations alone); this harness takes away both. It records
+the displacements at which a real run evaluates (``simulate``, the history benchmark's path or
+Fig. 13's) and evaluates the same sequence again, back to back, two ways:
+
+- ``python``: ``evaluate_unchecked`` for each, as the run does (the package's hand-off per call);
+- ``compiled``: one compiled loop over the whole sequence, handed to the threads once
+  (:func:`asperity_sim.threads.run_calls`): the calling thread posts each evaluation to the other
+  through a flag and takes its share of the chunks (claimed, as the package's reduction does); the
+  other thread waits for the next post in compiled code. No Python and no GIL between evaluations.
+  Evaluations whose asperities fit ``SERIAL_ACTIVE_CHUNKS`` chunks run on the calling thread, as in
+  the package.
+
+Both read the same kernels (``reduce_parallel``, ``reduce_serial``, ``bounds``, ``finish``) and must
+give the same bits (checked: every field of every evaluation). The two ways alternate, in both
+orders, in one process; medians over ``--rounds``. What the compiled loop leaves out: the Newton
+updates, predictors and recording between the evaluations (scalar arithmetic, or per step), so
+its scaling is what such a loop could reach at best.
+
+Run:   python benchmarks/compiled_loop.py [--rounds 9] [--paths benchmark,fig13]
+Writes outputs/compiled_loop.json. About a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import numba
+import numpy as np
+
+from asperity_sim import Population, laws, presets, simulate
+from asperity_sim.atomics import cpu_pause, load_acquire, store_release
+from asperity_sim.kernels.evaluate import Workspace, evaluate_unchecked, evaluation_from
+from asperity_sim.kernels.layout import CHUNK, N_OUT, O_NA, SERIAL_ACTIVE_CHUNKS, finish
+from asperity_sim.kernels.reach import bounds
+from asperity_sim.kernels.specialise import kernels
+from asperity_sim.kernels.state import ContactState
+from asperity_sim.solve import run as run_module
+from asperity_sim.threads import run_calls
+
+from whole_run import OUT, PATHS
+
+SIZES = (50_000, 500_000)
+MAIL, DONE, CLAIMS, STOP = 0, 8, 16, -1  # the flags: a post, its done, the chunk counter (cache lines apart)
+FIELDS = ("stress", "stderr", "covariance", "tangent", "n_contact", "n_slip", "n_partial", "mean_theta", "n_active",
+          "contact_area", "contact_area_var", "contact_area_cov", "contact_area_grad")
+_K = kernels("paper")
+reduce_parallel, reduce_serial = _K["reduce_parallel"], _K["reduce_serial"]
+
+
+@numba.njit(nogil=True)
+def serve(flags, r, R, u, cos_phi, sin_phi, counts, reals, d, consts, theta_birth, partial):
+    """The other thread: each posted evaluation's claimed chunks, until STOP is posted."""
+    seen = 0
+    while True:
+        v = load_acquire(flags, MAIL)
+        if v == seen:
+            cpu_pause()
+            continue
+        if v == STOP:
+            return
+        seen = v
+        reduce_parallel(r, R, u, cos_phi, sin_phi, counts[0], d, reals[0], reals[1], consts, theta_birth, reals[2],
+                        partial, flags[CLAIMS:CLAIMS + 1], 0, counts[1])
+        store_release(flags, DONE, v)
+
+
+@numba.njit(nogil=True)
+def evaluate_all(flags, r, R, u, cos_phi, sin_phi, R_min, counts, reals, d, consts, theta_birth, partial, deltas,
+                 beta, scale, n, out, shared):
+    """Row i of ``out``: the flat result at ``deltas[i]``, as ``at_contacts`` computes it; with ``shared`` the
+    other thread (:func:`serve`) takes its share of each parallel evaluation."""
+    r_o, k_e = reals[0], reals[1]
+    epoch = 0
+    for i in range(deltas.shape[0]):
+        for a in range(3):
+            d[a] = deltas[i, a]
+        n_active, tan_max = bounds(r, R_min, r_o, k_e, beta, d, theta_birth)
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        if n_chunks <= SERIAL_ACTIVE_CHUNKS:
+            reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas[i:i + 1], r_o, k_e, consts, beta, theta_birth, n,
+                          scale, partial, out[i:i + 1])
+            continue
+        if shared:
+            counts[0], counts[1], reals[2] = n_active, n_chunks, tan_max
+            flags[CLAIMS] = 0
+            epoch += 1
+            store_release(flags, MAIL, epoch)
+            reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, d, r_o, k_e, consts, theta_birth, tan_max, partial,
+                            flags[CLAIMS:CLAIMS + 1], 0, n_chunks)
+            while load_acquire(flags, DONE) != epoch:
+                cpu_pause()
+        else:
+            reduce_parallel(r, R, u, cos_phi, sin_phi, n_active, d, r_o, k_e, consts, theta_birth, tan_max, partial,
+                            flags[0:0], 0, n_chunks)
+        finish(partial, n_chunks, n, scale, out[i])
+        out[i, O_NA] = n_active
+
+
+@numba.njit(nogil=True)
+def drive(flags, r, R, u, cos_phi, sin_phi, R_min, counts, reals, d, consts, theta_birth, partial, deltas, beta,
+          scale, n, out, lo, hi):
+    """Part ``lo .. hi`` of :func:`run_calls` (2 parts): 0 evaluates and then posts STOP, 1 serves; both on one
+    thread: evaluates alone."""
+    if lo == 1:
+        serve(flags, r, R, u, cos_phi, sin_phi, counts, reals, d, consts, theta_birth, partial)
+    elif hi == 1:
+        evaluate_all(flags, r, R, u, cos_phi, sin_phi, R_min, counts, reals, d, consts, theta_birth, partial, deltas,
+                     beta, scale, n, out, True)
+        store_release(flags, MAIL, STOP)
+    else:
+        evaluate_all(flags, r, R, u, cos_phi, sin_phi, R_min, counts, reals, d, consts, theta_birth, partial, deltas,
+                     beta, scale, n, out, False)
+
+
+class Replay:
+    """A population, the displacements its `paper` run evaluates at, and the two ways to evaluate them again."""
+
+    def __init__(self, n, path):
+        self.pop = pop = Population.sample(presets.R1, n, seed=1)
+        self.deltas = self._deltas(path)
+        self.state = ContactState(pop, laws.get("paper"), "follow")
+        self.ws = Workspace(pop.n)
+        r_o, k_e, _, _, _, self.beta, self.scale = pop.kernel_constants
+        self.flags = np.zeros(3 * 8, dtype=np.int64)
+        self.counts = np.zeros(2, dtype=np.int64)
+        self.reals = np.array([r_o, k_e, 0.0])
+        self.d = np.zeros(3)
+        self.partial = np.zeros_like(self.ws.partial)
+        self.out = np.zeros((len(self.deltas), N_OUT))
+
+    def _deltas(self, path):
+        seen, plain = [], run_module.evaluate_unchecked
+
+        def recording(pop, d, state, ws):
+            seen.append(d.copy())
+            return plain(pop, d, state, ws)
+
+        run_module.evaluate_unchecked = recording
+        try:
+            simulate(self.pop.params, path, population=self.pop, law="paper")
+        finally:
+            run_module.evaluate_unchecked = plain
+        return np.array(seen)
+
+    def python(self):
+        """Wall time [s] of the sequence through ``evaluate_unchecked``, and its evaluations."""
+        t = time.perf_counter()
+        evs = [evaluate_unchecked(self.pop, d, self.state, self.ws) for d in self.deltas]
+        return time.perf_counter() - t, evs
+
+    def compiled(self):
+        """Wall time [s] of the sequence from :func:`drive`."""
+        p = self.pop
+        self.flags[:] = 0
+        t = time.perf_counter()
+        run_calls((drive, 2, (self.flags, *p.arrays, p.R_min, self.counts, self.reals, self.d, self.state.consts,
+                              np.zeros(0), self.partial, self.deltas, self.beta, self.scale, p.n, self.out)))
+        return time.perf_counter() - t
+
+    def same_bits(self, evs):
+        """Every field of every evaluation equal, bit for bit."""
+        for i, ev in enumerate(evs):
+            mine = evaluation_from(self.deltas[i], self.out[i])
+            if not all(np.array_equal(np.asarray(getattr(ev, f)), np.asarray(getattr(mine, f))) for f in FIELDS):
+                return False
+        return True
+
+
+def measure(name, rounds):
+    replays = {n: Replay(n, PATHS[name]()) for n in SIZES}
+    res = {}
+    for n, rp in replays.items():
+        rp.compiled()  # compiles the loop (not timed)
+        _, evs = rp.python()
+        res[str(n)] = {"evaluations": len(rp.deltas), "same_bits": rp.same_bits(evs)}
+    times = {(n, way): [] for n in SIZES for way in ("python", "compiled")}
+    for k in range(rounds):
+        for n, rp in replays.items():
+            first_python = k % 2 == 0  # both orders
+            for way in (("python", "compiled") if first_python else ("compiled", "python")):
+                times[(n, way)].append(rp.python()[0] if way == "python" else rp.compiled())
+    for n in SIZES:
+        for way in ("python", "compiled"):
+            res[str(n)][f"{way}_s"] = float(np.median(times[(n, way)]))
+        print(f"  {name:9s} n = {n:>7d}: {res[str(n)]['evaluations']} evaluations, python "
+              f"{1e3 * res[str(n)]['python_s']:.1f} ms, compiled {1e3 * res[str(n)]['compiled_s']:.1f} ms, "
+              f"same bits: {res[str(n)]['same_bits']}", flush=True)
+    lo, hi = str(SIZES[0]), str(SIZES[1])
+    res["scaling"] = {way: res[hi][f"{way}_s"] / res[lo][f"{way}_s"] for way in ("python", "compiled")}
+    print(f"  {name:9s} evaluations at n = {hi} over n = {lo}: python {res['scaling']['python']:.2f}, "
+          f"compiled {res['scaling']['compiled']:.2f} (target >= 8)", flush=True)
+    return res
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=9, help="alternations of the two ways (default 9)")
+    ap.add_argument("--paths", default="benchmark,fig13", help="paths of whole_run.py (default both)")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
+                       "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "rounds": args.rounds}
+    for name in args.paths.split(","):
+        out[name] = measure(name, args.rounds)
+    out["machine"]["load_end"] = os.getloadavg()[0]
+    out["wall_s"] = time.perf_counter() - t0
+    OUT.mkdir(exist_ok=True)
+    (OUT / "compiled_loop.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {OUT / 'compiled_loop.json'} ({out['wall_s']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
