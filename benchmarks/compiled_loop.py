@@ -21,8 +21,14 @@ orders, in one process; medians over ``--rounds``. What the compiled loop leaves
 updates, predictors and recording between the evaluations (scalar arithmetic, or per step), so
 its scaling is what such a loop could reach at best.
 
+For both laws (an `mdr` trial reads the state its commits leave, so it cannot be replayed alone),
+``kernels``: whole runs at both sizes, alternating, with the calling thread's time inside the
+package's kernels summed (its share of each parallel call, and the serial kernels it calls): what a
+loop compiled whole, trials and commits, with hand-offs that cost nothing, would take. For `paper`
+it reads the same as the compiled replay above.
+
 Run:   python benchmarks/compiled_loop.py [--rounds 9] [--paths benchmark,fig13]
-Writes outputs/compiled_loop.json. About a minute on 2 cores.
+Writes outputs/compiled_loop.json. About 3 minutes on 2 cores.
 """
 
 from __future__ import annotations
@@ -36,7 +42,11 @@ import time
 import numba
 import numpy as np
 
+import threading
+
 from asperity_sim import Population, laws, presets, simulate
+from asperity_sim.kernels import evaluate as evaluate_module
+from asperity_sim.kernels import state as state_module
 from asperity_sim.atomics import cpu_pause, load_acquire, store_release
 from asperity_sim.kernels.evaluate import Workspace, evaluate_unchecked, evaluation_from
 from asperity_sim.kernels.layout import CHUNK, N_OUT, O_NA, SERIAL_ACTIVE_CHUNKS, finish
@@ -46,7 +56,7 @@ from asperity_sim.kernels.state import ContactState
 from asperity_sim.solve import run as run_module
 from asperity_sim.threads import run_calls
 
-from whole_run import OUT, PATHS
+from whole_run import OUT, PATHS, law_kw
 
 SIZES = (50_000, 500_000)
 MAIL, DONE, CLAIMS, STOP = 0, 8, 16, -1  # the flags: a post, its done, the chunk counter (cache lines apart)
@@ -201,6 +211,61 @@ def measure(name, rounds):
     return res
 
 
+class InKernels:
+    """A kernel that adds the calling thread's time inside it to ``spent[0]`` (other threads: not counted)."""
+
+    def __init__(self, kernel, spent):
+        self.kernel, self.spent = kernel, spent
+
+    def __call__(self, *args):
+        if threading.current_thread() is not threading.main_thread():
+            return self.kernel(*args)
+        t = time.perf_counter()
+        try:
+            return self.kernel(*args)
+        finally:
+            self.spent[0] += time.perf_counter() - t
+
+    def __getattr__(self, name):  # py_func etc., for kernels.ahead
+        return getattr(self.kernel, name)
+
+
+SERIAL = ((evaluate_module, ("bounds", "finish")), (state_module, ("bounds", "assign_slots", "find_fresh")))
+"""The kernels the Python of a run calls by name, besides its law's reductions (``kernels(law)``)."""
+
+
+def kernel_time(law, name, rounds):
+    """Whole runs of ``law`` on path ``name`` at both sizes, alternating: medians of the wall time and of the calling
+    thread's time inside the kernels [s], and the scaling of each."""
+    spent, table = [0.0], kernels(law)
+    saved = dict(table), [(m, k, getattr(m, k)) for m, names in SERIAL for k in names]
+    table.update({k: InKernels(f, spent) for k, f in saved[0].items()})
+    for module, k, f in saved[1]:
+        setattr(module, k, InKernels(f, spent))
+    try:
+        pops = {n: Population.sample(presets.R1, n, seed=1) for n in SIZES}
+        path, rows = PATHS[name](), {n: [] for n in SIZES}
+        for k in range(rounds + 1):
+            for n, pop in pops.items():
+                spent[0] = 0.0
+                t = time.perf_counter()
+                simulate(pop.params, path, population=pop, **law_kw(law))
+                if k:  # the first round warms up
+                    rows[n].append((time.perf_counter() - t, spent[0]))
+    finally:
+        table.update(saved[0])
+        for module, k, f in saved[1]:
+            setattr(module, k, f)
+    res = {str(n): {"whole_s": float(np.median([r[0] for r in rows[n]])),
+                    "kernels_s": float(np.median([r[1] for r in rows[n]]))} for n in SIZES}
+    lo, hi = str(SIZES[0]), str(SIZES[1])
+    res["scaling"] = {part: res[hi][f"{part}_s"] / res[lo][f"{part}_s"] for part in ("whole", "kernels")}
+    print(f"  {law:5s} {name:9s} whole run {1e3 * res[lo]['whole_s']:.1f} and {1e3 * res[hi]['whole_s']:.1f} ms, in "
+          f"kernels {1e3 * res[lo]['kernels_s']:.1f} and {1e3 * res[hi]['kernels_s']:.1f} ms: scaling whole "
+          f"{res['scaling']['whole']:.2f}, kernels alone {res['scaling']['kernels']:.2f} (target >= 8)", flush=True)
+    return res
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=9, help="alternations of the two ways (default 9)")
@@ -209,8 +274,12 @@ def main():
     t0 = time.perf_counter()
     out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
                        "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "rounds": args.rounds}
+    print("a paper run's evaluations replayed:")
     for name in args.paths.split(","):
         out[name] = measure(name, args.rounds)
+    print("whole runs, the calling thread's time in kernels:")
+    out["kernels"] = {f"{law} {name}": kernel_time(law, name, args.rounds)
+                      for law in ("paper", "mdr") for name in args.paths.split(",")}
     out["machine"]["load_end"] = os.getloadavg()[0]
     out["wall_s"] = time.perf_counter() - t0
     OUT.mkdir(exist_ok=True)
