@@ -117,7 +117,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "same_numbers_geometry_exact.json", "whole_run_ec61720.json", "spring_gather.json",
            "whole_run_against_ec61720.json", "whole_run_55581aa.json", "cold_start_against_f1d9e88.json",
            "same_numbers_1cf19ed.md", "same_numbers_1cf19ed.json", "same_numbers_1cf19ed_exact.md",
-           "same_numbers_1cf19ed_exact.json")
+           "same_numbers_1cf19ed_exact.json", "whole_run_734612d.json", "whole_run_split_734612d.json",
+           "compiled_loop.json")
 
 
 def script_path(name: str) -> Path:
