@@ -34,7 +34,6 @@ Writes outputs/compiled_loop.json. About 90 s on 2 cores (67 s with --rounds 7).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
@@ -56,7 +55,7 @@ from asperity_sim.kernels.state import ContactState
 from asperity_sim.solve import run as run_module
 from asperity_sim.threads import run_calls
 
-from whole_run import OUT, PATHS, law_kw
+from whole_run import PATHS, law_kw, write
 
 SIZES = (50_000, 500_000)
 MAIL, DONE, CLAIMS, STOP = 0, 8, 16, -1  # the flags: a post, its done, the chunk counter (cache lines apart)
@@ -281,10 +280,7 @@ def main():
     out["kernels"] = {f"{law} {name}": kernel_time(law, name, args.rounds)
                       for law in ("paper", "mdr") for name in args.paths.split(",")}
     out["machine"]["load_end"] = os.getloadavg()[0]
-    out["wall_s"] = time.perf_counter() - t0
-    OUT.mkdir(exist_ok=True)
-    (OUT / "compiled_loop.json").write_text(json.dumps(out, indent=1))
-    print(f"wrote {OUT / 'compiled_loop.json'} ({out['wall_s']:.0f} s)")
+    write(out, "compiled_loop.json", t0)
 
 
 if __name__ == "__main__":
