@@ -1,4 +1,4 @@
-"""What a Newton loop compiled whole would leave of a `paper` run's evaluations (issue 37, target 2).
+"""What a Newton loop compiled whole would leave of a run: its increment scaling (issue 37, target 2).
 
 The increment scaling of `paper` (time per increment at n = 500 000 over n = 50 000, target >= 8)
 is held back by work that does not grow with n: the Python of the Newton loop, and for each
@@ -24,8 +24,9 @@ its scaling is what such a loop could reach at best.
 For both laws (an `mdr` trial reads the state its commits leave, so it cannot be replayed alone),
 ``kernels``: whole runs at both sizes, alternating, with the calling thread's time inside the
 package's kernels summed (its share of each parallel call, and the serial kernels it calls): what a
-loop compiled whole, trials and commits, with hand-offs that cost nothing, would take. For `paper`
-it reads the same as the compiled replay above.
+loop compiled whole, trials and commits, with hand-offs that cost nothing, would take. It counts
+the calls' dispatch from Python, which such a loop would not pay, and not the wait for a slower
+thread, which it would; for `paper` it reads a little below the compiled replay above.
 
 Run:   python benchmarks/compiled_loop.py [--rounds 9] [--paths benchmark,fig13]
 Writes outputs/compiled_loop.json. About 90 s on 2 cores (67 s with --rounds 7).
@@ -36,17 +37,16 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import threading
 import time
 
 import numba
 import numpy as np
 
-import threading
-
 from asperity_sim import Population, laws, presets, simulate
+from asperity_sim.atomics import cpu_pause, load_acquire, store_release
 from asperity_sim.kernels import evaluate as evaluate_module
 from asperity_sim.kernels import state as state_module
-from asperity_sim.atomics import cpu_pause, load_acquire, store_release
 from asperity_sim.kernels.evaluate import Workspace, evaluate_unchecked, evaluation_from
 from asperity_sim.kernels.layout import CHUNK, N_OUT, O_NA, SERIAL_ACTIVE_CHUNKS, finish
 from asperity_sim.kernels.reach import bounds
