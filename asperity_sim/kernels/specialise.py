@@ -30,9 +30,9 @@ import numba
 
 from .. import laws
 from ..jit import PACKAGE, source_fingerprint, tag
-from . import commit, history, reductions
+from . import commit, history, reductions, stage_loop
 
-FAMILIES = {"path_independent": (reductions,), "history": (history, commit)}
+FAMILIES = {"path_independent": (reductions, stage_loop), "history": (history, commit)}
 """The template modules of each kind of law."""
 
 

@@ -32,6 +32,7 @@ from ..version import __version__
 from . import run_checkpoint
 from .domain import DomainMonitor
 from .records import record_step, stderr_attributes, theta_am_at, utc_now
+from .span import can_span, span
 from .solver import solve_increment
 from .stepping import (
     TRUST,
@@ -258,8 +259,17 @@ class Run:
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
                            and fits_serial(self.pop.n) and progress is None and params.interaction == 0.0)
+                spans = not batches and can_span(self, free, progress, max_wall_time, checkpoint)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
+                    if spans and cuts == 0:
+                        consistent = False
+                        m, _ = span(self, stage, i_stage, free, end, nominal, smallest, done_in_stage)
+                        consistent = True
+                        ds, done_in_stage = pos.ds, done_in_stage + m
+                        if pos.s >= 1.0 - 1e-12:
+                            pos.i_stage, pos.started = pos.i_stage + 1, False
+                            break
                     if batches and cuts == 0 and not (max_wall_time is not None
                                                       and time.perf_counter() - t0 > max_wall_time):
                         consistent = False
