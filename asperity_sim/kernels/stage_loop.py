@@ -22,6 +22,7 @@ import numpy as np
 
 from ..atomics import cpu_pause, load_acquire, store_release
 from ..jit import kernel, template
+from .domain import domain_step
 from .layout import CHUNK, N_OUT, O_AREA_COV, O_AREA_GRAD, O_AREA_VAR, O_COV, O_NA, O_SE, O_STRESS, O_TANGENT, \
     SERIAL_ACTIVE_CHUNKS, SERIAL_CHUNKS, finish
 from .reach import bounds
@@ -42,14 +43,14 @@ def reduce_serial(r, R, u, cos_phi, sin_phi, R_min, deltas, r_o, k_e, consts, be
 MAIL, DONE, CLAIMS, STOP = 0, 8, 16, -1  # flags: a post, its done, the chunk counter (cache lines apart)
 # reals: the run's constants, then the loop position (updated in place)
 (R_RO, R_KE, R_BETA, R_SCALE, R_L, R_RTOL, R_RESTOL, R_FLOOR, R_MAXSTEP, R_MAXSEARCH, R_NOMINAL, R_SMALLEST,
- R_MAXFRAC, R_S, R_DS, R_KREF, R_PREVS, N_REALS) = range(18)
+ R_MAXFRAC, R_COSTOL, R_NORMALRTOL, R_LOOPRTOL, R_S, R_DS, R_KREF, R_PREVS, N_REALS) = range(21)
 # ints: constants, then counters (updated in place)
-I_K, I_MAXITER, I_MAXEXP, I_ADAPTIVE, I_MMAX, I_BUDGET, I_SERIALPOP, I_M, I_STATUS, I_EPOCH, N_INTS = range(11)
+I_K, I_MAXITER, I_MAXEXP, I_ADAPTIVE, I_MMAX, I_BUDGET, I_SERIALPOP, I_STEP0, I_M, I_STATUS, I_EPOCH, N_INTS = range(12)
 # vecs rows: start_delta, end, start_stress, delta (the last converged), prev_delta, prev_slope
 V_START, V_END, V_SSTART, V_DELTA, V_PREVD, V_PREVSLOPE = range(6)
 # per step: iterations, residual, s at its start, slope (3), stress_stderr (3), displacement_stderr (3), area stderr,
-# Delta (3)
-S_IT, S_RES, S_S, S_SLOPE, S_SSE, S_DSE, S_ASE, S_X, N_STEP = 0, 1, 2, 3, 6, 9, 12, 13, 16
+# Delta (3), the law's domain flags
+S_IT, S_RES, S_S, S_SLOPE, S_SSE, S_DSE, S_ASE, S_X, S_FLAGS, N_STEP = 0, 1, 2, 3, 6, 9, 12, 13, 16, 17
 DONE_STAGE, LIMIT, PYTHON = 0, 1, 2  # why span stopped: the stage ended, m_max increments, an increment for Python
 RESOLUTION_ULPS = 64.0
 
@@ -225,7 +226,7 @@ def newton(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, re
 
 @template(nogil=True, error_model="numpy")
 def increments(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, reals, vecs, ev, counts, d,
-               tan_box, rows, steps, shared):
+               tan_box, rows, steps, track, last, dcounts, shared):
     """The increments of the stage from the position in ``reals``/``vecs`` (module docstring): row i of ``rows``
     the evaluation of increment i, of ``steps`` its solve and standard errors; ``ints[I_STATUS]`` why it stopped."""
     k = ints[I_K]
@@ -306,6 +307,8 @@ def increments(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints
             reals[R_KREF] = py_max(reals[R_KREF], t_kk if math.isfinite(t_kk) else 0.0)
         steps[m, S_IT], steps[m, S_RES], steps[m, S_S] = iterations, residual, s
         stderr_of(out, k, steps[m, S_SSE:])
+        steps[m, S_FLAGS] = domain_step(track, last, dcounts, ints[I_STEP0] + m, x, out[O_STRESS:O_STRESS + 3],
+                                        reals[R_COSTOL], reals[R_NORMALRTOL], reals[R_LOOPRTOL])
         reals[R_DS] = next_step(ints[I_ADAPTIVE] == 1, ds, iterations, reals[R_NOMINAL], reals[R_SMALLEST],
                                 reals[R_MAXFRAC])
         reals[R_S] = s_new
@@ -316,7 +319,7 @@ def increments(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints
 
 @template(nogil=True, error_model="numpy")
 def span(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, reals, vecs, ev, counts, d, tan_box,
-         rows, steps, lo, hi):
+         rows, steps, track, last, dcounts, lo, hi):
     """Part ``lo .. hi`` of :func:`asperity_sim.threads.run_calls` over 2 parts: 0 the increments, then STOP; 1 serves
     their parallel evaluations; both on one thread: the increments alone."""
     if lo == 1:
@@ -324,8 +327,8 @@ def span(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, real
               partial)
     elif hi == 1:
         increments(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, reals, vecs, ev, counts, d,
-                   tan_box, rows, steps, True)
+                   tan_box, rows, steps, track, last, dcounts, True)
         store_release(flags, MAIL, STOP)
     else:
         increments(flags, r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, ints, reals, vecs, ev, counts, d,
-                   tan_box, rows, steps, False)
+                   tan_box, rows, steps, track, last, dcounts, False)

@@ -24,73 +24,70 @@ import math
 
 import numpy as np
 
-SHEAR_TURN, NORMAL_CHANGE, LOOP_WORK = 1, 2, 4
+from ..kernels.domain import (
+    C_ANY,
+    C_FIRST,
+    C_FIRST_FLAGS,
+    L_LOOP_WORK,
+    LOOP_WORK,
+    N_COUNTS,
+    N_LAST,
+    N_TRACK,
+    NORMAL_CHANGE,
+    SHEAR_TURN,
+    domain_step,
+)
+
 REASONS = {SHEAR_TURN: "the shear direction reversed or turned",
            NORMAL_CHANGE: "the normal stress changed during shear",
            LOOP_WORK: "the external work over a closed loop is negative (energy returned)"}
 
 
 class DomainMonitor:
-    """Flags the steps of a run where a path-independent law leaves its domain (module docstring)."""
+    """Flags the steps of a run where a path-independent law leaves its domain (module docstring).
+
+    Its state is that of the compiled step (:func:`asperity_sim.kernels.domain.domain_step`), in arrays
+    that the compiled increments of a stage update too (:meth:`room` first)."""
 
     def __init__(self, angle_tol=1e-6, normal_rtol=1e-2, loop_rtol=1e-3):
         self.angle_tol, self.normal_rtol, self.loop_rtol = angle_tol, normal_rtol, loop_rtol
-        self.deltas, self.work, self.abs_work = [], [], []
-        self.sigma_ref = None  # normal stress when shear began
-        self.first_step, self.first_flags, self.any_flags = -1, 0, 0
-        self.loop_work = math.nan
+        self.cos_tol = math.cos(angle_tol)
+        self.track = np.zeros((64, N_TRACK))
+        self.last = np.zeros(N_LAST)
+        self.last[3] = math.nan  # not sheared
+        self.last[L_LOOP_WORK] = math.nan
+        self.counts = np.zeros(N_COUNTS, dtype=np.int64)
+        self.counts[C_FIRST] = -1
+
+    @property
+    def first_step(self) -> int:
+        return int(self.counts[C_FIRST])
+
+    @property
+    def first_flags(self) -> int:
+        return int(self.counts[C_FIRST_FLAGS])
+
+    @property
+    def any_flags(self) -> int:
+        return int(self.counts[C_ANY])
+
+    @property
+    def loop_work(self) -> float:
+        return float(self.last[L_LOOP_WORK])
+
+    def room(self, steps):
+        """Room in the arrays for ``steps`` more steps."""
+        need = int(self.counts[0]) + steps
+        if need > self.track.shape[0]:
+            grown = np.zeros((max(need, 2 * self.track.shape[0]), N_TRACK))
+            grown[:self.track.shape[0]] = self.track
+            self.track = grown
 
     def step(self, step, delta, stress) -> int:
         """Flags of recorded ``step`` at displacement ``delta`` [m] and stress [Pa] (call in step order)."""
-        delta, stress = np.asarray(delta, float), np.asarray(stress, float)
-        flags = 0
-        if not self.deltas:
-            self.deltas.append(delta.copy())
-            self.work.append(0.0)
-            self.abs_work.append(0.0)
-            self._stress = stress.copy()
-            return 0
-        prev = self.deltas[-1]
-        dW = float(0.5 * (self._stress + stress) @ (delta - prev))
-        self.work.append(self.work[-1] + dW)
-        self.abs_work.append(self.abs_work[-1] + abs(dW))
-        s_prev, s_new = prev[1:], delta[1:]
-        ds = s_new - s_prev
-        n_prev, n_ds = float(np.hypot(*s_prev)), float(np.hypot(*ds))
-        if n_prev * n_ds > 0.0:
-            cos = float(s_prev @ ds) / (n_prev * n_ds)  # both norms > 0 (may underflow to 0 in the product)
-            if not cos >= math.cos(self.angle_tol):
-                flags |= SHEAR_TURN
-        sheared = float(np.hypot(*s_new)) > 0.0
-        if sheared and self.sigma_ref is None:
-            self.sigma_ref = float(self._stress[0])
-        if not sheared:
-            self.sigma_ref = None
-        elif abs(stress[0] - self.sigma_ref) > self.normal_rtol * max(abs(self.sigma_ref), abs(stress[0])):
-            flags |= NORMAL_CHANGE
-        self.deltas.append(delta.copy())
-        self._stress = stress.copy()
-        if self.any_flags or flags:
-            flags |= self._loop(delta)
-        if flags and self.first_step < 0:
-            self.first_step, self.first_flags = step, flags
-        self.any_flags |= flags
-        return flags
-
-    def _loop(self, delta) -> int:
-        """LOOP_WORK when delta closes a loop (returns to an earlier displacement) with negative work."""
-        past = np.asarray(self.deltas[:-2])
-        if past.size == 0:
-            return 0
-        scale = max(float(np.abs(np.asarray(self.deltas)).max()), 1e-300)
-        close = np.flatnonzero(np.abs(past - delta).max(axis=1) <= 1e-9 * scale)
-        for i in close[::-1]:
-            w = self.work[-1] - self.work[i]
-            along = self.abs_work[-1] - self.abs_work[i]
-            if along > 0.0 and w < -self.loop_rtol * along:
-                self.loop_work = w
-                return LOOP_WORK
-        return 0
+        self.room(1)
+        return int(domain_step(self.track, self.last, self.counts, step, np.asarray(delta, float),
+                               np.asarray(stress, float), self.cos_tol, self.normal_rtol, self.loop_rtol))
 
     def message(self, law_name, n_steps) -> str:
         reasons = "; ".join(text for bit, text in REASONS.items() if self.first_flags & bit)

@@ -139,10 +139,14 @@ class Run:
         first = self.domain.first_step
         flags = self.domain.step(step, delta, stress)
         if flags and first < 0:
-            self.attrs["law_domain_first_step"] = step
-            self.attrs["law_domain_note"] = self.domain.message(self.law.name, step)
-            warnings.warn(self.domain.message(self.law.name, step), LawDomainWarning, stacklevel=4)
+            self.domain_left(step, stacklevel=5)
         return {"law_domain": flags}
+
+    def domain_left(self, step, stacklevel):
+        """Note in the attributes, and warn, that the run left the law's domain at ``step`` (once)."""
+        self.attrs["law_domain_first_step"] = step
+        self.attrs["law_domain_note"] = self.domain.message(self.law.name, step)
+        warnings.warn(self.domain.message(self.law.name, step), LawDomainWarning, stacklevel=stacklevel)
 
     def domain_flags_of(self, first_step, deltas, stresses) -> dict:
         """:meth:`domain_flags` of consecutive recorded steps, as one column."""

@@ -49,14 +49,19 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage) -> tu
     k = int(np.flatnonzero(free)[0]) if free.any() else -1
     r_o, k_e, _, _, _, beta, scale = pop.kernel_constants
     reals = np.zeros(sl.N_REALS)
+    domain = run.domain
     reals[[sl.R_RO, sl.R_KE, sl.R_BETA, sl.R_SCALE, sl.R_L, sl.R_RTOL, sl.R_RESTOL, sl.R_FLOOR, sl.R_MAXSTEP,
-           sl.R_MAXSEARCH, sl.R_NOMINAL, sl.R_SMALLEST, sl.R_MAXFRAC, sl.R_S, sl.R_DS, sl.R_KREF, sl.R_PREVS]] = (
+           sl.R_MAXSEARCH, sl.R_NOMINAL, sl.R_SMALLEST, sl.R_MAXFRAC, sl.R_COSTOL, sl.R_NORMALRTOL, sl.R_LOOPRTOL,
+           sl.R_S, sl.R_DS, sl.R_KREF, sl.R_PREVS]] = (
         r_o, k_e, beta, scale, TRUST * run.length, settings.rtol, max(settings.resolution_rtol, settings.rtol),
-        settings.sigma_floor, settings.max_step, settings.max_search, nominal, smallest, stage.max_fraction, pos.s,
-        pos.ds, pos.k_ref, pos.prev_s)
+        settings.sigma_floor, settings.max_step, settings.max_search, nominal, smallest, stage.max_fraction,
+        domain.cos_tol, domain.normal_rtol, domain.loop_rtol, pos.s, pos.ds, pos.k_ref, pos.prev_s)
     ints = np.zeros(sl.N_INTS, dtype=np.int64)
-    ints[[sl.I_K, sl.I_MAXITER, sl.I_MAXEXP, sl.I_ADAPTIVE, sl.I_MMAX, sl.I_BUDGET, sl.I_SERIALPOP]] = (
-        k, settings.max_iter, settings.max_expansions, int(stage.adaptive), m_max, m_max, int(fits_serial(pop.n)))
+    ints[[sl.I_K, sl.I_MAXITER, sl.I_MAXEXP, sl.I_ADAPTIVE, sl.I_MMAX, sl.I_BUDGET, sl.I_SERIALPOP, sl.I_STEP0]] = (
+        k, settings.max_iter, settings.max_expansions, int(stage.adaptive), m_max, m_max, int(fits_serial(pop.n)),
+        run.rec.size)
+    domain.room(m_max)
+    first = domain.first_step
     vecs = np.array([pos.start_delta, end, pos.start_stress, run.delta, pos.prev_delta, pos.prev_slope], dtype=float)
     ev = np.empty(N_OUT)
     ev[:] = _row_of(run.ev)
@@ -64,10 +69,13 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage) -> tu
     flags = np.zeros(3 * 8, dtype=np.int64)
     kern = kernels(run.law)
     run_calls((kern["span"], 2, (flags, *pop.arrays, pop.R_min, run.state.consts, run.ws.partial, pop.n, ints, reals,
-                                 vecs, ev, np.zeros(2, dtype=np.int64), np.zeros(3), np.zeros(1), rows, steps)))
+                                 vecs, ev, np.zeros(2, dtype=np.int64), np.zeros(3), np.zeros(1), rows, steps, domain.track,
+                                 domain.last, domain.counts)))
     m, status = int(ints[sl.I_M]), int(ints[sl.I_STATUS])
     if m:
         _keep(run, i_stage, free, end, rows[:m], steps[:m], reals)
+        if first < 0 <= domain.first_step:
+            run.domain_left(domain.first_step, stacklevel=5)
     return m, status
 
 
@@ -108,7 +116,7 @@ def _keep(run, i_stage, free, end, rows, steps, reals):
                contact_area_fraction_stderr=steps[:, sl.S_ASE], mean_gap=params.mean_plane_depth - deltas[:, 0],
                mean_gap_stderr=disp_se[:, 0], stage=i_stage, control=free.astype("i1"),
                iterations=steps[:, sl.S_IT].astype(int), residual=steps[:, sl.S_RES], cutbacks=0,
-               **run.domain_flags_of(rec.size, deltas, stress))
+               law_domain=steps[:, sl.S_FLAGS].astype("i1"))
     prev = deltas[m - 2] if m > 1 else run.delta
     run.ev = evaluation_from(deltas[m - 1].copy(), rows[m - 1].copy())
     run.delta = run.ev.delta.copy()
