@@ -30,9 +30,9 @@ import numba
 
 from .. import laws
 from ..jit import PACKAGE, source_fingerprint, tag
-from . import commit, history, reductions, stage_loop
+from . import commit, history, loop, loop_path_independent, reductions
 
-FAMILIES = {"path_independent": (reductions, stage_loop), "history": (history, commit)}
+FAMILIES = {"path_independent": (reductions, loop, loop_path_independent), "history": (history, commit)}
 """The template modules of each kind of law."""
 
 
