@@ -30,9 +30,10 @@ import numba
 
 from .. import laws
 from ..jit import PACKAGE, source_fingerprint, tag
-from . import commit, history, loop, loop_path_independent, reductions
+from . import commit, history, loop, loop_history, loop_path_independent, reductions
 
-FAMILIES = {"path_independent": (reductions, loop, loop_path_independent), "history": (history, commit)}
+FAMILIES = {"path_independent": (reductions, loop, loop_path_independent),
+            "history": (history, commit, loop, loop_history)}
 """The template modules of each kind of law."""
 
 

@@ -251,6 +251,17 @@ class ContactState:
             _grow_in_place(a, new)
         self.asp[cap:] = -1
 
+    def span_scratch(self):
+        """(cpartial, by_slot, found, n_found): the commit's scratch sized for every slot, for the compiled
+        increments (:mod:`asperity_sim.kernels.loop_history`), which cannot grow it; None if the slot arrays
+        themselves could grow (they were not reserved for every asperity)."""
+        if self.asp.size < self.pop.n:
+            return None
+        n_chunks = chunks_of(self.asp.size, CHUNK)
+        if self._partial.shape[0] < n_chunks + 1:
+            self._partial = np.zeros((2 * n_chunks + 16, N_COMMIT))
+        return (self._partial, self._by_slot(self.asp.size), *self._fresh_rows(chunks_of(self.pop.n, CHUNK)))
+
     # -- snapshots and checkpoints ----------------------------------------------------------------
 
     def snapshot(self, delta):

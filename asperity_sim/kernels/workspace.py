@@ -71,10 +71,7 @@ class Workspace:
         """
         if not self.index:
             return 0
-        if self.listed is None or self.listed.size < pop.n:
-            self.listed = reserve(self.n_chunks * CHUNK, OFFSET)  # offsets in the chunk, written up to n_listed
-            self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
-            self.box_pop = None
+        self.allocate_index(pop)
         if self.box_pop is pop and n_active <= self.n_box:
             (lo1, lo2, lo3), (hi1, hi2, hi3) = self.box.tolist()
             d1, d2, d3 = d.tolist()  # Python floats: numpy costs more on 3 values, at every trial
@@ -92,6 +89,13 @@ class Workspace:
         self.n_box, self.tan_box = bounds(pop.r, pop.R_min, r_o, k_e, beta, corner, EMPTY)
         self.box_pop = None  # until the list is written
         return 1
+
+    def allocate_index(self, pop):
+        """The list of asperities near the path, allocated for ``pop`` if it is not (by the first trial)."""
+        if self.index and (self.listed is None or self.listed.size < pop.n):
+            self.listed = reserve(self.n_chunks * CHUNK, OFFSET)  # offsets in the chunk, written up to n_listed
+            self.n_listed = np.zeros(self.n_chunks, dtype=np.int64)
+            self.box_pop = None
 
     def rows(self, m):
         """At least m rows of partial sums (grown when a history law has more slot chunks)."""
