@@ -75,6 +75,18 @@ def kernel(**options):
     return compile_
 
 
+def ready(dispatcher, args) -> bool:
+    """True if ``dispatcher`` has machine code for ``args`` in this process or in numba's on-disk cache (then loaded):
+    a call with them compiles nothing."""
+    sig = tuple(numba.typeof(a) for a in args)
+    if sig in dispatcher.overloads:
+        return True
+    if dispatcher._cache.load_overload(sig, dispatcher.targetctx) is None:  # the key numba's own compile uses
+        return False
+    dispatcher.compile(sig)  # loads what the cache holds
+    return True
+
+
 def template(**options):
     """Decorator: mark ``f`` as a reduction template compiled per law with ``numba.njit(cache=True, **options)``.
 

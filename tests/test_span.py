@@ -18,7 +18,8 @@ from asperity_sim.solve import span as span_module
 S, D = paths.STRESS, paths.DISPLACEMENT
 
 
-def _both(monkeypatch, pop, path, **kw):
+def _both(monkeypatch, pop, path, law="paper", **kw):
+    monkeypatch.setattr(span_module, "MODE", "always")
     spans = []
     real = span_module.span
 
@@ -28,9 +29,10 @@ def _both(monkeypatch, pop, path, **kw):
         return m, status
 
     monkeypatch.setattr(run_module, "span", counting)
-    compiled = simulate(pop.params, path, population=pop, law="paper", **kw)
+    kw = {"law": law, **({"k": 8} if law == "mdr" else {}), **kw}
+    compiled = simulate(pop.params, path, population=pop, **kw)
     monkeypatch.setattr(run_module, "can_span", lambda *a: False)
-    python = simulate(pop.params, path, population=pop, law="paper", **kw)
+    python = simulate(pop.params, path, population=pop, **kw)
     return compiled, python, sum(spans)
 
 
@@ -57,34 +59,53 @@ CASES = {
 }
 
 
+@pytest.mark.parametrize("law", ["paper", "mdr"])
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_span_gives_the_bits_of_the_python_loop(monkeypatch, case):
+def test_span_gives_the_bits_of_the_python_loop(monkeypatch, case, law):
     pop = Population.sample(presets.R1, 40_000, seed=3)
-    compiled, python, spanned = _both(monkeypatch, pop, CASES[case]())
+    compiled, python, spanned = _both(monkeypatch, pop, CASES[case](), law)
     _same(compiled, python)
     assert spanned > 0  # the compiled span did run increments
 
 
-def test_span_on_the_serial_kernel(monkeypatch):
+@pytest.mark.parametrize("law", ["paper", "mdr"])
+def test_span_on_a_small_population(monkeypatch, law):
     pop = Population.sample(presets.R1, 3_000, seed=4)
-    compiled, python, spanned = _both(monkeypatch, pop, CASES["constant normal stress"]())
+    compiled, python, spanned = _both(monkeypatch, pop, CASES["constant normal stress"](), law)
     _same(compiled, python)
     assert spanned > 0
 
 
-def test_span_leaves_hard_increments_to_python(monkeypatch):
+def test_span_of_a_history_law_through_unloading_and_reversal(monkeypatch):
+    """Contacts lost and born again, springs reversed: every kind of commit (mdr)."""
+    pop = Population.sample(presets.R1, 30_000, seed=8)
+    path = paths.LoadPath((paths.Stage((S, D, D), (300e6, 0, 0), 8), paths.Stage((S, D, D), (300e6, 8e-6, 0), 12),
+                           paths.Stage((S, D, D), (300e6, -8e-6, 0), 16), paths.Stage((S, D, D), (20e6, -8e-6, 0), 8),
+                           paths.Stage((S, D, D), (300e6, -8e-6, 4e-6), 8)))
+    compiled, python, spanned = _both(monkeypatch, pop, path, "mdr")
+    _same(compiled, python)
+    assert spanned > 0
+
+
+@pytest.mark.parametrize("law", ["paper", "mdr"])
+def test_span_leaves_hard_increments_to_python(monkeypatch, law):
     """A stress target reached from no contact (bracket search) and a tiny stress on a stiff interface (solutions at
     the resolution of Delta): the Python loop takes up what the span leaves, with the same bits."""
     pop = Population.sample(presets.R1, 20_000, seed=5)
     path = paths.LoadPath((paths.Stage((S, D, D), (1.0, 0, 0), 6), paths.Stage((S, D, D), (1.0, 1e-9, 0), 6)))
-    compiled, python, _ = _both(monkeypatch, pop, path)
+    compiled, python, _ = _both(monkeypatch, pop, path, law)
     _same(compiled, python)
 
 
 def test_span_refuses_what_it_does_not_cover():
     pop = Population.sample(presets.R1, 3_000, seed=6)
     path = paths.constant_normal_shear(100e6, 5e-6, increments=4)
-    for kw in ({"law": "mdr"}, {"law": "paper", "policy": "birth"}):
+    two = paths.LoadPath((paths.Stage((S, S, D), (100e6, 1e6, 0), 4),))
+    params = pop.params
+    cases = [(path, {"law": "paper", "policy": "birth"}), (path, {"law": "mdr", "policy": "birth"}),
+             (two, {"law": "paper"}), (path, {"law": "mdr", "progress": lambda *a: None}),
+             (path, {"law": "paper", "max_wall_time": 1e3})]
+    for path_, kw in cases:
         seen = []
         real = run_module.can_span
 
@@ -95,7 +116,7 @@ def test_span_refuses_what_it_does_not_cover():
 
         run_module.can_span = spy
         try:
-            simulate(pop.params, path, population=pop, **kw)
+            simulate(params, path_, population=pop, **kw)
         finally:
             run_module.can_span = real
         assert seen and not any(seen), kw

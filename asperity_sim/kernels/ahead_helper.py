@@ -11,7 +11,9 @@ with populations given as arrays (no sampling kernels):
   after a call of its loop over a chunk (``chunk_follow``, most of its compile) on its own, so
   that the run, waiting, compiles the serial kernel's other callees for it to load.
 
-Each kernel's name is printed as soon as numba has written it to its cache.
+Each kernel's name is printed as soon as numba has written it to its cache.  Then, under policy
+follow, the law's compiled increments (:mod:`asperity_sim.solve.span`), which the run that started
+the helper does not wait for: the runs after it find them in the cache.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ def main(argv=None) -> int:
         for name, d2 in zip(names, (0.0, 0.1 * p.beta)):
             state.commit(np.array([p.beta, d2, 0.0]))
             print(name, flush=True)
+        compile_loop(pop, law, birth)
         return 0
     n = 3 if serial else SERIAL_CHUNKS * CHUNK + 1
     pop = Population.from_arrays(p, np.linspace(0.0, 0.2 * p.beta, n), np.full(n, p.R_m), np.linspace(0.3, 0.9, n),
@@ -55,7 +58,22 @@ def main(argv=None) -> int:
                                 Workspace(n).partial)
     evaluate(pop, np.array([p.beta, 0.0, 0.0]), law=law, policy=policy)
     print(names[0], flush=True)
+    compile_loop(pop, law, birth)
     return 0
+
+
+def compile_loop(pop, law, birth):
+    """Last, the compiled increments (:mod:`asperity_sim.solve.span`) into the cache, for the runs after this one: a
+    first run does without them, and compiles nothing for them."""
+    if birth:
+        return  # policy birth has none
+    from .. import paths
+    from ..solve import span
+    from ..solve.driver import simulate
+
+    span.MODE = "always"
+    path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
+    simulate(pop.params, path, population=pop, law=law)
 
 
 if __name__ == "__main__":

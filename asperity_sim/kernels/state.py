@@ -100,6 +100,7 @@ class ContactState:
             self._fresh = self._n_fresh = None  # the fresh contacts of a commit without a trial to list them
             self._partial = np.zeros((0, N_COMMIT))
             self._by_slot_cols = None
+            self._new_slots = None  # the slots given to the contacts born in a compiled commit (span_scratch)
 
     def _allocate_slots(self, n):
         """The slot arrays: reserved for as many slots as asperities (:func:`asperity_sim.memory.reserve`: only
@@ -252,15 +253,16 @@ class ContactState:
         self.asp[cap:] = -1
 
     def span_scratch(self):
-        """(cpartial, by_slot, found, n_found): the commit's scratch sized for every slot, for the compiled
-        increments (:mod:`asperity_sim.kernels.loop_history`), which cannot grow it; None if the slot arrays
-        themselves could grow (they were not reserved for every asperity)."""
-        if self.asp.size < self.pop.n:
-            return None
+        """(cpartial, by_slot, new_slots, found, n_found): the commit's scratch sized for every slot, for the compiled
+        increments (:mod:`asperity_sim.kernels.loop_history`), which cannot grow it (nor the slot arrays: they
+        must hold a slot for every asperity)."""
         n_chunks = chunks_of(self.asp.size, CHUNK)
         if self._partial.shape[0] < n_chunks + 1:
             self._partial = np.zeros((2 * n_chunks + 16, N_COMMIT))
-        return (self._partial, self._by_slot(self.asp.size), *self._fresh_rows(chunks_of(self.pop.n, CHUNK)))
+        if self._new_slots is None:
+            self._new_slots = reserve(self.asp.size, np.int64)  # only the pages written cost memory
+        return (self._partial, self._by_slot(self.asp.size), self._new_slots,
+                *self._fresh_rows(chunks_of(self.pop.n, CHUNK)))
 
     # -- snapshots and checkpoints ----------------------------------------------------------------
 

@@ -61,6 +61,7 @@ class Run:
         self.resumed_from = None
         self.variables = run_variables(self.law)
         self.domain = DomainMonitor() if self.law.path_independent else None
+        self.compiled_loop = None  # whether the compiled increments run (solve.span), once it is decided
         # a first run: a helper compiles the kernels this run needs last while it compiles the first (kernels.ahead)
         ahead.expect(self.law.name, policy == "birth", fits_serial(population.n if population is not None else n),
                      imports=LATE_IMPORTS)

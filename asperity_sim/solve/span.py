@@ -8,9 +8,12 @@ the run's position and energies on exactly as the Python loop of
 
 from __future__ import annotations
 
+import os
+
 import numba
 import numpy as np
 
+from .. import jit
 from ..geometry import closure
 from ..kernels import loop as lp
 from ..kernels.evaluate import evaluation_from
@@ -22,12 +25,22 @@ from .records import theta_am_at
 from .stepping import TRUST
 
 
+MODE_ENV = "ASPERITY_SIM_COMPILED_LOOP"
+"""Environment variable: when runs use the compiled increments (:data:`MODE`)."""
+MODE = os.environ.get(MODE_ENV, "cached")
+"""``cached`` (default): where they cover a stage and their code is compiled already (in this process or numba's
+on-disk cache, where ``asperity-sim warmup`` and the compile-ahead helper of a first run put it): a first run
+compiles nothing more than the Python loop needs; ``always``: compiled at their first use; ``never``: the Python
+loop alone."""
+
+
 def can_span(run, free, progress, max_wall_time, checkpoint) -> bool:
     """True when the stage's increments may run compiled: policy follow, no elastic interaction, at most one
     stress-controlled component, nobody who must see each increment (a progress callback, snapshots,
     checkpoints, a wall-time limit), and the law's state in arrays that never grow (:mod:`.span_args`)."""
-    return (run.state.theta_birth is None and run.params.interaction == 0.0 and int(np.count_nonzero(free)) <= 1
-            and progress is None and max_wall_time is None and checkpoint is None and not run.snap_stage_ends
+    return (run.compiled_loop is not False and MODE != "never" and run.state.theta_birth is None
+            and run.params.interaction == 0.0 and int(np.count_nonzero(free)) <= 1 and progress is None
+            and max_wall_time is None and checkpoint is None and not run.snap_stage_ends
             and not any(s >= run.rec.size for s in run.snap_steps) and span_args.supported(run))
 
 
@@ -61,8 +74,13 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage) -> tu
     rows, steps = np.empty((m_max, N_OUT)), np.zeros((m_max, lp.N_STEP))
     flags = np.zeros(lp.n_flags(threads), dtype=np.int64)
     law_args, after = span_args.law_args(run, threads)
-    run_calls((kernels(run.law)["span"], threads, (flags, law_args, ints, reals, vecs, older, ev, rows, steps, track,
-                                                  last, dcounts)))
+    args = (flags, law_args, ints, reals, vecs, older, ev, rows, steps, track, last, dcounts)
+    kernel = kernels(run.law)["span"]
+    if run.compiled_loop is None:  # decided once per run
+        run.compiled_loop = MODE == "always" or (MODE == "cached" and jit.ready(kernel, (*args, 0, 1)))
+    if not run.compiled_loop:
+        return 0, lp.PYTHON
+    run_calls((kernel, threads, args))
     m, status = int(ints[lp.I_M]), int(ints[lp.I_STATUS])
     after(m)
     if m:

@@ -40,7 +40,7 @@ def _history(run, threads):
     pop, st, ws = run.pop, run.state, run.ws
     ws.allocate_index(pop)
     partial = ws.rows(chunks_of(pop.n, CHUNK) + chunks_of(st.asp.size, CHUNK))
-    cpartial, by_slot, found, n_found = st.span_scratch()
+    cpartial, by_slot, new_slots, found, n_found = st.span_scratch()
     hints = np.zeros(lh.N_HINTS, dtype=np.int64)
     hints[[lh.H_NSLOTS, lh.H_THREADS, lh.H_INDEX, lh.H_BOXOK, lh.H_NBOX, lh.H_NSTORE]] = (
         st.n_slots, threads, int(ws.index), int(ws.box_pop is pop), ws.n_box, st.n_stored)
@@ -51,8 +51,8 @@ def _history(run, threads):
     listed, n_listed = (ws.listed, ws.n_listed) if ws.index else (EMPTY_INDEX, EMPTY_COUNTS)
     args = (*pop.arrays, pop.R_min, st.consts, pop.n, st.asp, st.dn_c, st.code, st.flag, st.arrays, delta_c, partial,
             ws.fresh, ws.n_fresh, listed, n_listed, ws.box, cpartial, by_slot,
-            np.zeros(chunks_of(st.asp.size, CHUNK), dtype=np.int64), np.empty(st.asp.size, dtype=np.int64), found,
-            n_found, hints, hreals, np.zeros(lh.N_POSTI, dtype=np.int64), np.zeros(1), np.zeros(3), np.zeros(3))
+            np.zeros(chunks_of(st.asp.size, CHUNK), dtype=np.int64), new_slots, found, n_found, hints, hreals,
+            np.zeros(lh.N_POSTI, dtype=np.int64), np.zeros(1), np.zeros(3), np.zeros(3))
 
     def after(m):
         st.n_slots = int(hints[lh.H_NSLOTS])
