@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from asperity_sim import jit, laws
-from asperity_sim.kernels import commit, history, loop, loop_path_independent, reductions, specialise
+from asperity_sim.kernels import commit, history, loop, loop_history, loop_path_independent, reductions, specialise
 
 PACKAGE = Path(jit.__file__).resolve().parent
 
@@ -58,7 +58,8 @@ def test_each_law_gets_its_own_compiled_copies_named_by_law_and_fingerprint():
     birth = specialise.kernels("paper", birth=True)
     assert set(paper) == set(specialise.templates_of(reductions)) | set(specialise.templates_of(loop)) | set(
         specialise.templates_of(loop_path_independent))
-    assert set(mdr) == set(specialise.templates_of(history)) | set(specialise.templates_of(commit))
+    assert set(mdr) == (set(specialise.templates_of(history)) | set(specialise.templates_of(commit))
+                        | set(specialise.templates_of(loop)) | set(specialise.templates_of(loop_history)))
     assert paper["reduce_parallel"].py_func.__qualname__ == (
         f"reduce_parallel__paper_follow_{specialise.law_fingerprint(laws.get('paper'))}")
     assert birth["reduce_parallel"].py_func.__qualname__.startswith("reduce_parallel__paper_birth_")

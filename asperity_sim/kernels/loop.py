@@ -146,7 +146,7 @@ def predict(ints, reals, vecs, older, ev, s, s_new, guess, slope):
     the tangent predictor: :func:`~asperity_sim.solve.stepping.tangent_predictor`, then the cubic (path-independent
     law) or the extrapolation through four points (history law) where it is kept."""
     k, delta = ints[I_K], vecs[V_DELTA]
-    start, end, sstart = vecs[V_START], vecs[V_END], vecs[V_SSTART]
+    end, sstart = vecs[V_END], vecs[V_SSTART]
     if k >= 0:
         target_k = sstart[k] + s_new * (end[k] - sstart[k])
         held = 0.0  # the sum first, as Python's sum

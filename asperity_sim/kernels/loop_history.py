@@ -19,7 +19,6 @@ the others before each post (``post_i``, ``post_r``, ``d``, ``ref``).
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

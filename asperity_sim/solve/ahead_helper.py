@@ -1,6 +1,6 @@
 """The helper process of :mod:`asperity_sim.kernels.ahead`: compile a law's last-needed kernels into the cache.
 
-Run as ``python -m asperity_sim.kernels.ahead_helper <law> <follow|birth> [serial|parallel]``,
+Run as ``python -m asperity_sim.solve.ahead_helper <law> <follow|birth> [serial|parallel]``,
 with populations given as arrays (no sampling kernels):
 
 - a history law: three asperities committed twice, at displacements where all three touch,
@@ -22,14 +22,16 @@ import sys
 
 import numpy as np
 
-from .. import laws, presets
+from .. import laws, paths, presets
+from ..kernels.ahead import kernel_names
+from ..kernels.evaluate import evaluate
+from ..kernels.layout import CHUNK, SERIAL_CHUNKS
+from ..kernels.specialise import kernels
+from ..kernels.state import ContactState
+from ..kernels.workspace import Workspace
 from ..sampling.population import Population
-from .ahead import kernel_names
-from .evaluate import evaluate
-from .layout import CHUNK, SERIAL_CHUNKS
-from .specialise import kernels
-from .state import ContactState
-from .workspace import Workspace
+from . import span
+from .driver import simulate
 
 
 def main(argv=None) -> int:
@@ -67,10 +69,6 @@ def compile_loop(pop, law, birth):
     first run does without them, and compiles nothing for them."""
     if birth:
         return  # policy birth has none
-    from .. import paths
-    from ..solve import span
-    from ..solve.driver import simulate
-
     span.MODE = "always"
     path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
     simulate(pop.params, path, population=pop, law=law)
