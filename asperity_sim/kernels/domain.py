@@ -6,7 +6,10 @@ Its state is arrays: ``track`` (steps, 5): each recorded Delta [m], the external
 the work of its absolute increments [J/m²]; ``last`` (5,): the last stress (3) [Pa], the normal
 stress when shear began (NaN: not sheared) [Pa] and the work of the closed loop last flagged;
 ``counts`` (4,): steps recorded, first step flagged (-1: none), its flags, every flag seen.
-The dot products are numpy's (``np.dot``, the BLAS numpy's ``@`` calls: the same bits).
+The work and the cosine are sums in index order: numpy's ``@`` (its BLAS) may fuse the products and
+so differ in the last bit, which can change a flag only where the test sits on its threshold to
+that bit (the flags of every scenario are the same, studies/same_numbers.py); ``np.dot`` would
+match it, at the cost of seconds of compile in a first run.
 """
 
 from __future__ import annotations
@@ -40,32 +43,35 @@ def domain_step(track, last, counts, step, delta, stress, cos_tol, normal_rtol, 
     """
     n = counts[C_STEPS]
     if n == 0:
-        track[0, :3] = delta
+        for j in range(3):
+            track[0, j] = delta[j]
+            last[j] = stress[j]
         track[0, T_WORK] = track[0, T_ABS] = 0.0
-        last[:3] = stress
         counts[C_STEPS] = 1
         return 0
     flags = 0
-    prev = track[n - 1, :3]
-    dW = np.dot(0.5 * (last[:3] + stress), delta - prev)
+    prev = track[n - 1]
+    dW = 0.0
+    for j in range(3):
+        dW += (0.5 * (last[j] + stress[j])) * (delta[j] - prev[j])
     track[n, T_WORK] = track[n - 1, T_WORK] + dW
     track[n, T_ABS] = track[n - 1, T_ABS] + abs(dW)
-    s_prev, s_new = prev[1:].copy(), delta[1:].copy()
-    ds = s_new - s_prev
-    n_prev, n_ds = np.hypot(s_prev[0], s_prev[1]), np.hypot(ds[0], ds[1])
+    ds1, ds2 = delta[1] - prev[1], delta[2] - prev[2]
+    n_prev, n_ds = np.hypot(prev[1], prev[2]), np.hypot(ds1, ds2)
     if n_prev * n_ds > 0.0:
-        cos = np.dot(s_prev, ds) / (n_prev * n_ds)  # both norms > 0 (may underflow to 0 in the product)
+        cos = (prev[1] * ds1 + prev[2] * ds2) / (n_prev * n_ds)  # both norms > 0 (may underflow to 0 in the product)
         if not cos >= cos_tol:
             flags |= SHEAR_TURN
-    sheared = np.hypot(s_new[0], s_new[1]) > 0.0
+    sheared = np.hypot(delta[1], delta[2]) > 0.0
     if sheared and math.isnan(last[L_SIGMA_REF]):
         last[L_SIGMA_REF] = last[0]
     if not sheared:
         last[L_SIGMA_REF] = math.nan
     elif abs(stress[0] - last[L_SIGMA_REF]) > normal_rtol * _py_max(abs(last[L_SIGMA_REF]), abs(stress[0])):
         flags |= NORMAL_CHANGE
-    track[n, :3] = delta
-    last[:3] = stress
+    for j in range(3):
+        track[n, j] = delta[j]
+        last[j] = stress[j]
     counts[C_STEPS] = n + 1
     if counts[C_ANY] or flags:
         flags |= _loop(track, last, n, delta, loop_rtol)

@@ -18,6 +18,7 @@ the helper does not wait for: the runs after it find them in the cache.
 
 from __future__ import annotations
 
+import os
 import sys
 
 import numpy as np
@@ -69,6 +70,8 @@ def compile_loop(pop, law, birth):
     first run does without them, and compiles nothing for them."""
     if birth:
         return  # policy birth has none
+    if hasattr(os, "nice"):
+        os.nice(10)  # only what the runs leave of the cores: nobody waits for these
     span.MODE = "always"
     path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
     simulate(pop.params, path, population=pop, law=law)
