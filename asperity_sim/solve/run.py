@@ -270,7 +270,7 @@ class Run:
                     if spans and cuts == 0:
                         consistent = False
                         m, _ = span(self, stage, i_stage, free, end, nominal, smallest, done_in_stage)
-                        consistent = True
+                        consistent, spans = True, self.compiled_loop
                         ds, done_in_stage = pos.ds, done_in_stage + m
                         if pos.s >= 1.0 - 1e-12:
                             pos.i_stage, pos.started = pos.i_stage + 1, False
