@@ -53,6 +53,7 @@ from asperity_sim.kernels.reach import bounds
 from asperity_sim.kernels.specialise import kernels
 from asperity_sim.kernels.state import ContactState
 from asperity_sim.solve import run as run_module
+from asperity_sim.solve import span as compiled_span
 from asperity_sim.threads import run_calls
 
 from whole_run import PATHS, law_kw, write
@@ -154,10 +155,11 @@ class Replay:
             return plain(pop, d, state, ws)
 
         run_module.evaluate_unchecked = recording
+        mode, compiled_span.MODE = compiled_span.MODE, "never"  # the Python loop, whose evaluations are seen here
         try:
             simulate(self.pop.params, path, population=self.pop, law="paper")
         finally:
-            run_module.evaluate_unchecked = plain
+            run_module.evaluate_unchecked, compiled_span.MODE = plain, mode
         return np.array(seen)
 
     def python(self):

@@ -26,13 +26,16 @@ process, because absolute times drift on a shared machine):
    has, alternately; the parallel efficiency t_1 / (p t_p) of each law's increments (target
    >= 0.9 from 1 to 2 threads).  On a machine shared with other jobs this is a lower bound.
 
+Runs take the compiled increments wherever they cover a stage (:mod:`asperity_sim.solve.span`): the
+warm-up compiles them, as ``asperity-sim warmup`` or a first run's compile-ahead helper would.
+
 ``--one-thread`` adds item 1 on one thread: the increment scaling without the hand-offs to the
 other threads (what the fixed per-increment work of the Newton loop costs alone).
 
-``--split`` measures only item 1 for ``paper``, split into the time in the evaluations (the kernel
-calls with their thin Python) and the rest of the run (the predictor, the Newton loop, the commit
-and the recording, all Python): the increment scaling each part would have alone, that is what a
-Newton loop compiled with no Python cost left would reach at best (writes outputs/whole_run_split.json).
+``--split`` measures only item 1 for ``paper`` in the Python loop (the compiled increments off), split
+into the time in the evaluations (the kernel calls with their thin Python) and the rest of the run
+(the predictor, the Newton loop, the commit and the recording, all Python): the increment scaling
+each part would have alone (writes outputs/whole_run_split.json).
 
 ``--against COMMIT`` measures only item 1, for the code of COMMIT (a detached worktree in a
 temporary folder) and for this checkout, each in fresh processes, alternating ``--alternations``
@@ -67,6 +70,7 @@ import numpy as np
 
 from asperity_sim import Population, paths, presets, simulate
 from asperity_sim.laws.mdr.springs import springs_below
+from asperity_sim.solve import span as compiled_span
 
 OUT = Path(__file__).resolve().parent.parent / "outputs"
 S, D = paths.STRESS, paths.DISPLACEMENT
@@ -150,9 +154,10 @@ def one_thread(sizes, rounds):
 
 
 def split(sizes, rounds):
-    """Item 1 for ``paper``, split: the time in the evaluations (``evaluate_unchecked``: the kernel calls and their
-    thin Python) and the rest of the run (predictor, Newton loop, commit, recording: Python), medians over
-    ``rounds`` runs after a first; the increment scaling of each part (``--split``)."""
+    """Item 1 for ``paper`` in the Python loop (the compiled increments off), split: the time in the evaluations
+    (``evaluate_unchecked``: the kernel calls and their thin Python) and the rest of the run (predictor, Newton loop,
+    commit, recording: Python), medians over ``rounds`` runs after a first; the increment scaling of each part
+    (``--split``)."""
     from asperity_sim.solve import run as run_module
 
     plain = run_module.evaluate_unchecked
@@ -168,6 +173,7 @@ def split(sizes, rounds):
 
     out = {}
     run_module.evaluate_unchecked = timed
+    mode, compiled_span.MODE = compiled_span.MODE, "never"  # the Python loop, the one that calls evaluate_unchecked
     try:
         for name, make in PATHS.items():
             path, res = make(), {}
@@ -191,7 +197,7 @@ def split(sizes, rounds):
                   " (target >= 8)", flush=True)
             out[name] = res
     finally:
-        run_module.evaluate_unchecked = plain
+        run_module.evaluate_unchecked, compiled_span.MODE = plain, mode
     return out
 
 
@@ -381,6 +387,7 @@ def main(argv=None):
         return write(out, "whole_run_against.json", t0)
     out = {"machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(), "python": platform.python_version(),
                        "numba": numba.__version__, "load_start": os.getloadavg()[0]}, "k": K}
+    compiled_span.MODE = "always"  # the compiled increments, as every run after a first finds them (solve.span)
     warm = Population.sample(presets.R1, 2000, seed=0)
     for law in ("paper", "mdr"):  # compile, or load from the cache
         run_time(warm, bench_path(), law)

@@ -15,6 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numba
+import numpy as np
 import pytest
 
 from asperity_sim import jit, laws
@@ -147,3 +149,11 @@ def test_a_first_compile_says_so_once_per_group_on_a_terminal():
     silent.on_start(Event(fake("asperity_sim.kernels.history", "slot_pass__mdr_follow_0123456789ab")))
     assert quiet.getvalue() == ""
     assert isinstance(jit.NOTICE, event.Listener)
+
+
+def test_ready_says_whether_a_call_would_compile():
+    """jit.ready: False for argument types with no machine code in this process or the cache, True once compiled."""
+    f = numba.njit(lambda x: x + 1.0)  # no on-disk cache: nothing to load
+    assert not jit.ready(f, (1.0,))
+    assert f(1.0) == 2.0
+    assert jit.ready(f, (1.0,)) and not jit.ready(f, (np.zeros(2),))

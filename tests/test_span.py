@@ -11,7 +11,7 @@ on the serial kernel.
 import numpy as np
 import pytest
 
-from asperity_sim import Population, paths, presets, simulate
+from asperity_sim import Population, paths, presets, resume, simulate
 from asperity_sim.solve import run as run_module
 from asperity_sim.solve import span as span_module
 
@@ -97,14 +97,35 @@ def test_span_leaves_hard_increments_to_python(monkeypatch, law):
     _same(compiled, python)
 
 
+@pytest.mark.parametrize("law", ["paper", "mdr"])
+def test_span_stops_for_snapshots_checkpoints_and_progress(monkeypatch, tmp_path, law):
+    """Snapshots, checkpoints and the progress callback see the same steps, states and calls from both loops."""
+    pop = Population.sample(presets.R1, 30_000, seed=9)
+    path = CASES["constant normal stress"]()
+    seen = {}
+
+    def run(label, **kw):
+        calls = seen.setdefault(label, [])
+        return simulate(pop.params, path, population=pop, law=law, snapshots=[5, 33], progress=lambda *a: calls.append(a),
+                        checkpoint=tmp_path / f"{label}.ckpt", checkpoint_every=7, **kw)
+
+    monkeypatch.setattr(span_module, "MODE", "always")
+    compiled = run("compiled")
+    monkeypatch.setattr(run_module, "can_span", lambda *a: False)
+    python = run("python")
+    _same(compiled, python)
+    assert seen["compiled"] == seen["python"] and len(seen["python"]) == 60
+    assert compiled.sizes.get("snapshot", 0) == 2  # both snapshots taken (compared with the rest above)
+    _same(resume(tmp_path / "compiled.ckpt"), resume(tmp_path / "python.ckpt"))  # the last checkpoints hold the same
+
+
 def test_span_refuses_what_it_does_not_cover():
     pop = Population.sample(presets.R1, 3_000, seed=6)
     path = paths.constant_normal_shear(100e6, 5e-6, increments=4)
     two = paths.LoadPath((paths.Stage((S, S, D), (100e6, 1e6, 0), 4),))
     params = pop.params
     cases = [(path, {"law": "paper", "policy": "birth"}), (path, {"law": "mdr", "policy": "birth"}),
-             (two, {"law": "paper"}), (path, {"law": "mdr", "progress": lambda *a: None}),
-             (path, {"law": "paper", "max_wall_time": 1e3})]
+             (two, {"law": "paper"}), (path, {"law": "mdr", "max_wall_time": 1e3})]
     for path_, kw in cases:
         seen = []
         real = run_module.can_span

@@ -35,7 +35,9 @@ from . import span
 from .driver import simulate
 
 
-def main(argv=None) -> int:
+def main(argv=None, loop=False) -> int:
+    """Compile the kernels of ``argv`` (law, policy, serial or parallel); with ``loop`` then the compiled
+    increments, at low priority (the helper process does; a call in a run's own process should not)."""
     args = sys.argv[1:] if argv is None else argv
     law, policy = args[:2]
     serial = (args[2] if len(args) > 2 else "serial") == "serial"
@@ -49,7 +51,8 @@ def main(argv=None) -> int:
         for name, d2 in zip(names, (0.0, 0.1 * p.beta)):
             state.commit(np.array([p.beta, d2, 0.0]))
             print(name, flush=True)
-        compile_loop(pop, law, birth)
+        if loop:
+            compile_loop(pop, law, birth)
         return 0
     n = 3 if serial else SERIAL_CHUNKS * CHUNK + 1
     pop = Population.from_arrays(p, np.linspace(0.0, 0.2 * p.beta, n), np.full(n, p.R_m), np.linspace(0.3, 0.9, n),
@@ -61,7 +64,8 @@ def main(argv=None) -> int:
                                 Workspace(n).partial)
     evaluate(pop, np.array([p.beta, 0.0, 0.0]), law=law, policy=policy)
     print(names[0], flush=True)
-    compile_loop(pop, law, birth)
+    if loop:
+        compile_loop(pop, law, birth)
     return 0
 
 
@@ -72,10 +76,13 @@ def compile_loop(pop, law, birth):
         return  # policy birth has none
     if hasattr(os, "nice"):
         os.nice(10)  # only what the runs leave of the cores: nobody waits for these
-    span.MODE = "always"
-    path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
-    simulate(pop.params, path, population=pop, law=law)
+    mode, span.MODE = span.MODE, "always"
+    try:
+        path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
+        simulate(pop.params, path, population=pop, law=law)
+    finally:
+        span.MODE = mode
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(loop=True))

@@ -264,16 +264,16 @@ class Run:
                 # increments that are one evaluation each, on serial kernels, with nobody watching each one
                 batches = (not free.any() and self.law.path_independent and self.state.theta_birth is None
                            and fits_serial(self.pop.n) and progress is None and params.interaction == 0.0)
-                spans = not batches and can_span(self, free, progress, max_wall_time, checkpoint)
+                spans = not batches and can_span(self, free, max_wall_time)
                 ds, cuts = pos.ds, 0
                 while pos.s < 1.0 - 1e-12:
-                    if spans and cuts == 0:
+                    if spans and cuts == 0:  # as many increments as it can, compiled (solve.span)
                         consistent = False
-                        m, _ = span(self, stage, i_stage, free, end, nominal, smallest, done_in_stage)
+                        m, stage_done = span(self, stage, i_stage, free, end, nominal, smallest, done_in_stage,
+                                             (progress, checkpoint, checkpoint_every, t0, n_stages))
                         consistent, spans = True, self.compiled_loop
                         ds, done_in_stage = pos.ds, done_in_stage + m
-                        if pos.s >= 1.0 - 1e-12:
-                            pos.i_stage, pos.started = pos.i_stage + 1, False
+                        if stage_done:
                             break
                     if batches and cuts == 0 and not (max_wall_time is not None
                                                       and time.perf_counter() - t0 > max_wall_time):

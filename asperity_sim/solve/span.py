@@ -9,6 +9,7 @@ the run's position and energies on exactly as the Python loop of
 from __future__ import annotations
 
 import os
+import time
 
 import numba
 import numpy as np
@@ -34,22 +35,54 @@ compiles nothing more than the Python loop needs; ``always``: compiled at their 
 loop alone."""
 
 
-def can_span(run, free, progress, max_wall_time, checkpoint) -> bool:
+def can_span(run, free, max_wall_time) -> bool:
     """True when the stage's increments may run compiled: policy follow, no elastic interaction, at most one
-    stress-controlled component, nobody who must see each increment (a progress callback, snapshots,
-    checkpoints, a wall-time limit), and the law's state in arrays that never grow (:mod:`.span_args`)."""
+    stress-controlled component, no wall-time limit (checked at every evaluation) and the law's state in arrays
+    that never grow (:func:`.span_args.supported`)."""
     return (run.compiled_loop is not False and MODE != "never" and run.state.theta_birth is None
-            and run.params.interaction == 0.0 and int(np.count_nonzero(free)) <= 1 and progress is None
-            and max_wall_time is None and checkpoint is None and not run.snap_stage_ends
-            and not any(s >= run.rec.size for s in run.snap_steps) and span_args.supported(run))
+            and run.params.interaction == 0.0 and int(np.count_nonzero(free)) <= 1 and max_wall_time is None
+            and span_args.supported(run))
 
 
-def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage) -> tuple:
-    """Run the stage's coming increments compiled (:func:`can_span` true); (increments done, why it stopped)."""
-    pos, settings, history = run.pos, run.settings, not run.law.path_independent
+def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage, watch) -> tuple:
+    """Run the stage's coming increments compiled (:func:`can_span` true), then what the Python loop does after
+    each: (increments done, whether the stage ended).
+
+    ``watch`` (progress, checkpoint, checkpoint_every, t0, n_stages): the loop stops after the increment of
+    a snapshot or checkpoint step, and after every increment when a progress callback watches them.
+    """
+    progress, checkpoint, checkpoint_every, t0, n_stages = watch
+    step0 = run.rec.size
     m_max = stage.budget - done_in_stage
+    if progress is not None:
+        m_max = min(m_max, 1)
+    snaps = [s for s in run.snap_steps if s >= step0]
+    if snaps:
+        m_max = min(m_max, min(snaps) - step0 + 1)
+    if checkpoint is not None and checkpoint_every:
+        m_max = min(m_max, -step0 % checkpoint_every + 1)
+    m, _, iterations = _run(run, stage, i_stage, free, end, nominal, smallest, m_max)
+    if not m:
+        return 0, False
+    stage_done = run.pos.s >= 1.0 - 1e-12
+    step = run.rec.size - 1
+    if step in run.snap_steps or (run.snap_stage_ends and stage_done):
+        run.take_snapshot(step)
+    if stage_done:
+        run.pos.i_stage, run.pos.started = run.pos.i_stage + 1, False
+    if checkpoint is not None and (step % checkpoint_every == 0 if checkpoint_every else stage_done):
+        run.save_checkpoint(checkpoint, checkpoint_every, run.wall_before + time.perf_counter() - t0)
+    if progress is not None:
+        progress(i_stage, n_stages, run.pos.s, step, iterations)
+    return m, stage_done
+
+
+def _run(run, stage, i_stage, free, end, nominal, smallest, m_max) -> tuple:
+    """The compiled call for at most ``m_max`` increments: (increments done, why it stopped, iterations of the
+    last)."""
+    pos, settings, history = run.pos, run.settings, not run.law.path_independent
     if m_max <= 0:
-        return 0, lp.PYTHON
+        return 0, lp.PYTHON, 0
     threads = numba.get_num_threads()
     domain = run.domain
     reals = np.zeros(lp.N_REALS)
@@ -79,15 +112,15 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage) -> tu
     if run.compiled_loop is None:  # decided once per run
         run.compiled_loop = MODE == "always" or (MODE == "cached" and jit.ready(kernel, (*args, 0, 1)))
     if not run.compiled_loop:
-        return 0, lp.PYTHON
+        return 0, lp.PYTHON, 0
     run_calls((kernel, threads, args))
     m, status = int(ints[lp.I_M]), int(ints[lp.I_STATUS])
     after(m)
     if m:
         _keep(run, i_stage, free, end, rows[:m], steps[:m], reals)
         if domain is not None and first < 0 <= domain.first_step:
-            run.domain_left(domain.first_step, stacklevel=5)
-    return m, status
+            run.domain_left(domain.first_step, stacklevel=6)
+    return m, status, int(steps[m - 1, lp.S_IT]) if m else 0
 
 
 def row_of(ev) -> np.ndarray:
