@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from ..atomics import cpu_pause, load_acquire, store_release
+from ..atomics import cpu_pause, cpu_yield, load_acquire, store_release
 from ..jit import kernel, template
 from .domain import domain_step
 from .layout import N_OUT, O_AREA_COV, O_AREA_GRAD, O_AREA_VAR, O_COV, O_SE, O_STRESS, O_TANGENT
@@ -72,11 +72,23 @@ def post(flags, kind):
 
 
 @kernel(inline="always")
+def idle(k):
+    """The k-th poll of a wait: a pause, and every 32nd the core to any other thread ready to run on it (where
+    threads outnumber the cores, the one with work runs; :func:`asperity_sim.atomics.wait_while`)."""
+    if k % 32 == 31:
+        cpu_yield()
+    else:
+        cpu_pause()
+
+
+@kernel(inline="always")
 def wait_all(flags, epoch, threads):
     """Until every other thread has done part ``epoch``."""
     for t in range(1, threads):
+        k = 0
         while load_acquire(flags, DONE + 8 * t) != epoch:
-            cpu_pause()
+            idle(k)
+            k += 1
 
 
 # ---- layout of the loop's arrays ----

@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..atomics import cpu_pause, load_acquire, store_release
+from ..atomics import load_acquire, store_release
 from ..jit import kernel, template
 from .commit import assign_slots, find_fresh
 from .history import scan_chunks
 from .layout import BLOCK, BLOCKS_PER_CHUNK, C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, O_NA, finish
-from .loop import CLAIMS, CLAIMS2, DONE, MAIL, STOP, post, wait_all
+from .loop import CLAIMS, CLAIMS2, DONE, MAIL, STOP, idle, post, wait_all
 from .reach import bounds
 
 # hints (int64): slots in use, threads, index on, box valid, n_box, trials by index (3), springs per slot, commits
@@ -255,12 +255,14 @@ def _add_rows(sums, rows, k):
 def serve(flags, law_args, t):
     """Thread t: its claims of each posted trial or commit, until STOP."""
     threads = law_args[26][H_THREADS]
-    seen = 0
+    seen, k = 0, 0
     while True:
         v = load_acquire(flags, MAIL)
         if v == seen:
-            cpu_pause()
+            idle(k)
+            k += 1
             continue
+        k = 0
         if v == STOP:
             return
         seen = v

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..atomics import cpu_pause, load_acquire, store_release
+from ..atomics import load_acquire, store_release
 from ..jit import template
 from .layout import CHUNK, N_OUT, O_NA, SERIAL_ACTIVE_CHUNKS, finish
-from .loop import CLAIMS, DONE, MAIL, STOP, post, wait_all
+from .loop import CLAIMS, DONE, MAIL, STOP, idle, post, wait_all
 from .reach import bounds
 
 P_RO, P_KE, P_BETA, P_SCALE, P_TANMAX, N_PREALS = range(6)
@@ -79,12 +79,14 @@ def serve(flags, law_args, t):
     """Thread t: each posted evaluation's claimed chunks, until STOP."""
     r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, serial, reals, counts, d = law_args
     empty = np.empty(0)
-    seen = 0
+    seen, k = 0, 0
     while True:
         v = load_acquire(flags, MAIL)
         if v == seen:
-            cpu_pause()
+            idle(k)
+            k += 1
             continue
+        k = 0
         if v == STOP:
             return
         seen = v
