@@ -82,6 +82,24 @@ def idle(k):
 
 
 @kernel(inline="always")
+def next_post(flags, seen):
+    """A serving thread's wait for the next part after part ``seen``: its epoch, or STOP."""
+    k = 0
+    while True:
+        v = load_acquire(flags, MAIL)
+        if v != seen:
+            return v
+        idle(k)
+        k += 1
+
+
+@kernel(inline="always")
+def said_done(flags, t, epoch):
+    """Thread t has done part ``epoch``."""
+    store_release(flags, DONE + 8 * t, epoch)
+
+
+@kernel(inline="always")
 def wait_all(flags, epoch, threads):
     """Until every other thread has done part ``epoch``."""
     for t in range(1, threads):

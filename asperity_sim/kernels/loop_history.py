@@ -22,12 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..atomics import load_acquire, store_release
 from ..jit import kernel, template
 from .commit import assign_slots, find_fresh
 from .history import scan_chunks
 from .layout import BLOCK, BLOCKS_PER_CHUNK, C_DISS, C_EVENTS, C_STORED, C_TR, C_WORK, CHUNK, N_COMMIT, O_NA, finish
-from .loop import CLAIMS, CLAIMS2, DONE, MAIL, STOP, idle, post, wait_all
+from .loop import CLAIMS, CLAIMS2, KIND, STOP, next_post, post, said_done, wait_all
 from .reach import bounds
 
 # hints (int64): slots in use, threads, index on, box valid, n_box, trials by index (3), springs per slot, commits
@@ -194,19 +193,14 @@ def commit_at(flags, law_args, x, ref_now, out, extra, shared):
     (r, R, u, cos_phi, sin_phi, R_min, consts, n, asp, dn_c, code, flag, arrays, delta_c, partial, fresh, n_fresh,
      listed, n_listed, box, cpartial, by_slot, done, new_slots, found, n_found, hints, hreals, post_i, post_r, d,
      ref) = law_args
-    threads = hints[H_THREADS]
     d[:] = x
     n_active, tan_max = bounds(r, R_min, hreals[HR_RO], hreals[HR_KE], hreals[HR_BETA], d, np.empty(0))
     n_slots = hints[H_NSLOTS]
-    n_slot_chunks, n_pop_chunks = chunks(n_slots), chunks(n_active)
+    n_pop_chunks = chunks(n_active)
     sums = np.zeros(N_COMMIT)
     if n_slots:
-        blocks = by_blocks(n_slots, threads)
-        post_i[PI_NSLOTS], post_i[PI_BLOCKS] = n_slots, int(blocks)
-        post_i[PI_PIECES] = n_slot_chunks * BLOCKS_PER_CHUNK if blocks else n_slot_chunks
-        done[:n_slot_chunks] = 0
-        commit_step(flags, law_args, COMMIT_SLOTS, shared)
-        _add_rows(sums, cpartial, n_slot_chunks)
+        post_i[PI_NSLOTS] = n_slots
+        _commit_pieces(flags, law_args, COMMIT_SLOTS, n_slots, sums, shared)
     most = 0
     for ic in range(n_pop_chunks):
         most = max(most, n_fresh[ic])
@@ -221,14 +215,8 @@ def commit_at(flags, law_args, x, ref_now, out, extra, shared):
         n_new += n_born[ic]
     if n_new:
         n_slots = assign_slots(flag, born, n_born[:n_pop_chunks], asp, n_slots, new_slots[:n_new])
-        hints[H_NSLOTS] = n_slots
-        n_new_chunks = chunks(n_new)
-        blocks = by_blocks(n_new, threads)
-        post_i[PI_NNEW], post_i[PI_BLOCKS] = n_new, int(blocks)
-        post_i[PI_PIECES] = n_new_chunks * BLOCKS_PER_CHUNK if blocks else n_new_chunks
-        done[:n_new_chunks] = 0
-        commit_step(flags, law_args, COMMIT_FRESH, shared)
-        _add_rows(sums, cpartial, n_new_chunks)
+        hints[H_NSLOTS], post_i[PI_NNEW] = n_slots, n_new
+        _commit_pieces(flags, law_args, COMMIT_FRESH, n_new, sums, shared)
     scale = hreals[HR_SCALE]
     extra[0], extra[1], extra[2] = scale * sums[C_WORK], scale * sums[C_STORED], scale * sums[C_DISS]
     extra[3] = np.rint(sums[C_EVENTS])
@@ -240,6 +228,20 @@ def commit_at(flags, law_args, x, ref_now, out, extra, shared):
     extra[4] = n - total  # out of contact before and after (the count of the sums included)
     hints[H_COMMITS] += 1
     delta_c[:] = x
+
+
+@template(nogil=True, error_model="numpy")
+def _commit_pieces(flags, law_args, kind, n, sums, shared):
+    """Commit n contacts (``kind``) as :meth:`~asperity_sim.kernels.state.ContactState.commit` hands them out: by
+    blocks where :func:`by_blocks` says so, else chunk by chunk; their sums added to ``sums``."""
+    cpartial, done, hints, post_i = law_args[20], law_args[22], law_args[26], law_args[28]
+    n_chunks = chunks(n)
+    blocks = by_blocks(n, hints[H_THREADS])
+    post_i[PI_BLOCKS] = int(blocks)
+    post_i[PI_PIECES] = n_chunks * BLOCKS_PER_CHUNK if blocks else n_chunks
+    done[:n_chunks] = 0
+    commit_step(flags, law_args, kind, shared)
+    _add_rows(sums, cpartial, n_chunks)
 
 
 @kernel(inline="always")
@@ -255,20 +257,14 @@ def _add_rows(sums, rows, k):
 def serve(flags, law_args, t):
     """Thread t: its claims of each posted trial or commit, until STOP."""
     threads = law_args[26][H_THREADS]
-    seen, k = 0, 0
+    seen = 0
     while True:
-        v = load_acquire(flags, MAIL)
-        if v == seen:
-            idle(k)
-            k += 1
-            continue
-        k = 0
-        if v == STOP:
+        seen = next_post(flags, seen)
+        if seen == STOP:
             return
-        seen = v
-        kind = flags[8]
+        kind = flags[KIND]
         if kind == TRIAL:
             trial_part(law_args, flags[CLAIMS:CLAIMS + 1], flags[CLAIMS2:CLAIMS2 + 1])
         else:
             commit_part(law_args, kind, flags[CLAIMS:CLAIMS + 1], t, threads)
-        store_release(flags, DONE + 8 * t, v)
+        said_done(flags, t, seen)

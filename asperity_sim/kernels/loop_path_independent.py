@@ -16,10 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..atomics import load_acquire, store_release
 from ..jit import template
 from .layout import CHUNK, N_OUT, O_NA, SERIAL_ACTIVE_CHUNKS, finish
-from .loop import CLAIMS, DONE, MAIL, STOP, idle, post, wait_all
+from .loop import CLAIMS, DONE, STOP, next_post, post, said_done, wait_all
 from .reach import bounds
 
 P_RO, P_KE, P_BETA, P_SCALE, P_TANMAX, N_PREALS = range(6)
@@ -79,17 +78,11 @@ def serve(flags, law_args, t):
     """Thread t: each posted evaluation's claimed chunks, until STOP."""
     r, R, u, cos_phi, sin_phi, R_min, consts, partial, n, serial, reals, counts, d = law_args
     empty = np.empty(0)
-    seen, k = 0, 0
+    seen = 0
     while True:
-        v = load_acquire(flags, MAIL)
-        if v == seen:
-            idle(k)
-            k += 1
-            continue
-        k = 0
-        if v == STOP:
+        seen = next_post(flags, seen)
+        if seen == STOP:
             return
-        seen = v
         reduce_parallel(r, R, u, cos_phi, sin_phi, counts[0], d, reals[P_RO], reals[P_KE], consts, empty,
                         reals[P_TANMAX], partial, flags[CLAIMS:CLAIMS + 1], 0, counts[1])
-        store_release(flags, DONE + 8 * t, v)
+        said_done(flags, t, seen)
