@@ -89,7 +89,7 @@ sys.exit(1)
 HELPER = """
 import json
 from numba.core import event
-from asperity_sim.solve import ahead_helper
+from asperity_sim.kernels import ahead_helper
 compiled = []
 class Listener(event.Listener):
     def on_start(self, ev):
@@ -196,7 +196,7 @@ def test_the_helper_of_an_announced_run_starts_once_at_the_first_compile_of_any_
 @pytest.mark.parametrize("mode", ["serial", "parallel"])
 def test_the_helper_says_the_evaluation_kernel_it_compiled(mode, capsys):
     from asperity_sim import laws
-    from asperity_sim.solve import ahead_helper
+    from asperity_sim.kernels import ahead_helper
 
     assert ahead_helper.main(["paper", "follow", mode]) == 0
     said = capsys.readouterr().out.split()

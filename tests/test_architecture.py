@@ -148,7 +148,7 @@ def test_every_public_name_is_the_one_its_module_defines():
 def test_a_run_and_the_compile_ahead_helper_start_without_the_output_libraries():
     """``simulate``, and the helper that compiles ahead in a fresh process, are reached without importing xarray
     or pandas (half a second that a first run would spend before it starts compiling)."""
-    code = ("import sys, asperity_sim, asperity_sim.solve.ahead_helper; asperity_sim.simulate; "
+    code = ("import sys, asperity_sim, asperity_sim.kernels.ahead_helper; asperity_sim.simulate; "
             "print(sorted(m for m in ('xarray', 'pandas') if m in sys.modules))")
     env = {**os.environ, "PYTHONPATH": str(PACKAGE.parent)}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)

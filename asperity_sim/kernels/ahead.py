@@ -3,7 +3,7 @@
 Owns :func:`expect`, :func:`start`, :func:`compiling`, :func:`wait_for` and the listener that starts the helper.
 A first run with an empty numba cache compiles its kernels one after the other on one core:
 the sampling kernels, then the evaluation (for a history law its trial, then its commit). A
-helper process (:mod:`asperity_sim.solve.ahead_helper`) compiles the ones needed last on a
+helper process (:mod:`asperity_sim.kernels.ahead_helper`) compiles the ones needed last on a
 tiny population into numba's on-disk cache, and says the name of each as it is done:
 
 - a history law: its commit kernels (:data:`COMMIT_KERNELS`), while this process compiles the trial;
@@ -39,7 +39,7 @@ __all__ = ["wait_for", "compiling", "start", "expect", "pending", "kernel_names"
 
 ENV = "ASPERITY_SIM_COMPILE_AHEAD"
 """Environment variable: ``0`` turns compiling ahead off (the helper runs with it)."""
-HELPER = "asperity_sim.solve.ahead_helper"
+HELPER = "asperity_sim.kernels.ahead_helper"
 """The module the helper runs."""
 COMMIT_KERNELS = ("commit_fresh", "commit_slots")
 """The kernels the helper compiles for a history law, in the order a run first calls them."""

@@ -10,5 +10,5 @@
 - :mod:`~asperity_sim.solve.domain`: where a path-independent law leaves its domain;
 - :mod:`~asperity_sim.solve.single`: one contact driven through a local path;
 - :mod:`~asperity_sim.solve.pruning`: runs on the height band a path can reach;
-- :mod:`~asperity_sim.solve.warmup` and :mod:`~asperity_sim.solve.ahead_helper`: compiling ahead.
+- :mod:`~asperity_sim.solve.warmup`: compiling ahead.
 """

@@ -30,9 +30,8 @@ MODE_ENV = "ASPERITY_SIM_COMPILED_LOOP"
 """Environment variable: when runs use the compiled increments (:data:`MODE`)."""
 MODE = os.environ.get(MODE_ENV, "cached")
 """``cached`` (default): where they cover a stage and their code is compiled already (in this process or numba's
-on-disk cache, where ``asperity-sim warmup`` and the compile-ahead helper of a first run put it): a first run
-compiles nothing more than the Python loop needs; ``always``: compiled at their first use; ``never``: the Python
-loop alone."""
+on-disk cache, where ``asperity-sim warmup`` puts it): a first run compiles nothing more than the Python loop
+needs; ``always``: compiled at their first use (a minute for both laws); ``never``: the Python loop alone."""
 
 
 def can_span(run, free, max_wall_time) -> bool:

@@ -1,6 +1,6 @@
 """The helper process of :mod:`asperity_sim.kernels.ahead`: compile a law's last-needed kernels into the cache.
 
-Run as ``python -m asperity_sim.solve.ahead_helper <law> <follow|birth> [serial|parallel]``,
+Run as ``python -m asperity_sim.kernels.ahead_helper <law> <follow|birth> [serial|parallel]``,
 with populations given as arrays (no sampling kernels):
 
 - a history law: three asperities committed twice, at displacements where all three touch,
@@ -11,33 +11,26 @@ with populations given as arrays (no sampling kernels):
   after a call of its loop over a chunk (``chunk_follow``, most of its compile) on its own, so
   that the run, waiting, compiles the serial kernel's other callees for it to load.
 
-Each kernel's name is printed as soon as numba has written it to its cache.  Then, under policy
-follow, the law's compiled increments (:mod:`asperity_sim.solve.span`), which the run that started
-the helper does not wait for: the runs after it find them in the cache.
+Each kernel's name is printed as soon as numba has written it to its cache.
 """
 
 from __future__ import annotations
 
-import os
 import sys
 
 import numpy as np
 
-from .. import laws, paths, presets
-from ..kernels.ahead import kernel_names
-from ..kernels.evaluate import evaluate
-from ..kernels.layout import CHUNK, SERIAL_CHUNKS
-from ..kernels.specialise import kernels
-from ..kernels.state import ContactState
-from ..kernels.workspace import Workspace
+from .. import laws, presets
 from ..sampling.population import Population
-from . import span
-from .driver import simulate
+from .ahead import kernel_names
+from .evaluate import evaluate
+from .layout import CHUNK, SERIAL_CHUNKS
+from .specialise import kernels
+from .state import ContactState
+from .workspace import Workspace
 
 
-def main(argv=None, loop=False) -> int:
-    """Compile the kernels of ``argv`` (law, policy, serial or parallel); with ``loop`` then the compiled
-    increments, at low priority (the helper process does; a call in a run's own process should not)."""
+def main(argv=None) -> int:
     args = sys.argv[1:] if argv is None else argv
     law, policy = args[:2]
     serial = (args[2] if len(args) > 2 else "serial") == "serial"
@@ -51,8 +44,6 @@ def main(argv=None, loop=False) -> int:
         for name, d2 in zip(names, (0.0, 0.1 * p.beta)):
             state.commit(np.array([p.beta, d2, 0.0]))
             print(name, flush=True)
-        if loop:
-            compile_loop(pop, law, birth)
         return 0
     n = 3 if serial else SERIAL_CHUNKS * CHUNK + 1
     pop = Population.from_arrays(p, np.linspace(0.0, 0.2 * p.beta, n), np.full(n, p.R_m), np.linspace(0.3, 0.9, n),
@@ -64,25 +55,8 @@ def main(argv=None, loop=False) -> int:
                                 Workspace(n).partial)
     evaluate(pop, np.array([p.beta, 0.0, 0.0]), law=law, policy=policy)
     print(names[0], flush=True)
-    if loop:
-        compile_loop(pop, law, birth)
     return 0
 
 
-def compile_loop(pop, law, birth):
-    """Last, the compiled increments (:mod:`asperity_sim.solve.span`) into the cache, for the runs after this one: a
-    first run does without them, and compiles nothing for them."""
-    if birth:
-        return  # policy birth has none
-    if hasattr(os, "nice"):
-        os.nice(10)  # only what the runs leave of the cores: nobody waits for these
-    mode, span.MODE = span.MODE, "always"
-    try:
-        path = paths.LoadPath((paths.Stage(("s", "d", "d"), (1e6, 0.0, 0.0), 1),), name="compile")
-        simulate(pop.params, path, population=pop, law=law)
-    finally:
-        span.MODE = mode
-
-
 if __name__ == "__main__":
-    sys.exit(main(loop=True))
+    sys.exit(main())
