@@ -8,12 +8,17 @@ without a Newton solve, stress control of a shear component, adaptive increments
 on the serial kernel.
 """
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from asperity_sim import Population, paths, presets, resume, simulate
 from asperity_sim.solve import run as run_module
 from asperity_sim.solve import span as span_module
+from asperity_sim.threads import SPIN_ENV
 
 S, D = paths.STRESS, paths.DISPLACEMENT
 
@@ -141,3 +146,43 @@ def test_span_refuses_what_it_does_not_cover():
         finally:
             run_module.can_span = real
         assert seen and not any(seen), kw
+
+
+ON_TWO_THREADS = """
+import numpy as np
+from asperity_sim import Population, paths, presets, simulate
+from asperity_sim.solve import run as run_module, span
+assert span.SPIN_US > 0
+pop = Population.sample(presets.R1, 60_000, seed=11)
+path = paths.LoadPath((paths.Stage(("s", "d", "d"), (300e6, 0, 0), 8), paths.Stage(("s", "d", "d"), (300e6, 8e-6, 0), 12),
+                       paths.Stage(("s", "d", "d"), (300e6, -4e-6, 0), 12)))
+real, done = run_module.span, []
+
+
+def counting(*args):
+    m, stage_done = real(*args)
+    done.append(m)
+    return m, stage_done
+
+
+run_module.span = counting
+for law in ("paper", "mdr"):
+    span.MODE = "always"
+    compiled = simulate(pop.params, path, population=pop, law=law, k=8)
+    span.MODE = "never"
+    python = simulate(pop.params, path, population=pop, law=law, k=8)
+    assert all(np.array_equal(compiled[v].values, python[v].values) for v in compiled.data_vars), law
+assert sum(done) > 0
+print("same bits")
+"""
+
+
+@pytest.mark.slow  # a process of its own: two threads that poll (the suite's worker processes run the span alone)
+def test_span_on_two_threads_gives_the_bits_of_the_python_loop():
+    """The threads that serve the span's parallel parts (posts, claims, waits) give the same bits as the Python
+    loop, on two threads with the default polling (tests/conftest.py turns polling off in the suite's workers, and
+    the span then runs on the calling thread alone)."""
+    env = {k: v for k, v in os.environ.items() if k != SPIN_ENV} | {"NUMBA_NUM_THREADS": "2"}
+    run = subprocess.run([sys.executable, "-c", ON_TWO_THREADS], env=env, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert run.stdout.strip().endswith("same bits")

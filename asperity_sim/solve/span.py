@@ -20,7 +20,7 @@ from ..kernels import loop as lp
 from ..kernels.evaluate import evaluation_from
 from ..kernels.layout import N_OUT, O_AREA, O_NC, O_NP, O_NS, O_STRESS, O_TANGENT, O_TH
 from ..kernels.specialise import kernels
-from ..threads import run_calls
+from ..threads import SPIN_US, run_calls
 from . import span_args
 from .records import theta_am_at
 from .stepping import TRUST
@@ -82,7 +82,9 @@ def _run(run, stage, i_stage, free, end, nominal, smallest, m_max) -> tuple:
     pos, settings, history = run.pos, run.settings, not run.law.path_independent
     if m_max <= 0:
         return 0, lp.PYTHON, 0
-    threads = numba.get_num_threads()
+    # the other threads poll for the whole call: where idle threads must sleep at once (ASPERITY_SIM_SPIN_US=0:
+    # processes share the cores), the calling thread does it alone (the same bits on any number of threads)
+    threads = numba.get_num_threads() if SPIN_US > 0 else 1
     domain = run.domain
     reals = np.zeros(lp.N_REALS)
     reals[[lp.R_L, lp.R_RTOL, lp.R_RESTOL, lp.R_FLOOR, lp.R_MAXSTEP, lp.R_MAXSEARCH, lp.R_NOMINAL, lp.R_SMALLEST,
