@@ -118,8 +118,8 @@ RECORDS = ("speed.json", "speed.log", "benchmark_kernel.json", "history_law.json
            "whole_run_against_ec61720.json", "whole_run_55581aa.json", "cold_start_against_f1d9e88.json",
            "same_numbers_1cf19ed.md", "same_numbers_1cf19ed.json", "same_numbers_1cf19ed_exact.md",
            "same_numbers_1cf19ed_exact.json", "whole_run_734612d.json", "whole_run_split_734612d.json",
-           "compiled_loop.json", "whole_run_b716641.json", "cold_start_b716641.json", "same_numbers_compiled_loop.md",
-           "same_numbers_compiled_loop.json", "same_numbers_compiled_loop_exact.md", "same_numbers_compiled_loop_exact.json")
+           "compiled_loop.json", "whole_run_b716641.json", "cold_start_b716641.json", "cold_start_28430ac.json",
+           "same_numbers_compiled_loop.md", "same_numbers_compiled_loop.json", "same_numbers_compiled_loop_exact.md", "same_numbers_compiled_loop_exact.json")
 
 
 def script_path(name: str) -> Path:
