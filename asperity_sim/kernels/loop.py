@@ -110,7 +110,7 @@ def wait_all(flags, epoch, threads):
 
 
 # ---- layout of the loop's arrays ----
-I_K, I_MAXITER, I_MAXEXP, I_ADAPTIVE, I_MMAX, I_STEP0, I_HISTORY, I_THREADS, I_M, I_STATUS, N_INTS = range(11)
+I_K, I_MAXITER, I_MAXEXP, I_ADAPTIVE, I_MMAX, I_STEP0, I_HISTORY, I_THREADS, I_M, N_INTS = range(10)
 (R_L, R_RTOL, R_RESTOL, R_FLOOR, R_MAXSTEP, R_MAXSEARCH, R_NOMINAL, R_SMALLEST, R_MAXFRAC, R_COSTOL, R_NORMALRTOL,
  R_LOOPRTOL, R_S, R_DS, R_KREF, R_PREVS, N_REALS) = range(17)
 V_START, V_END, V_SSTART, V_DELTA, V_PREVD, V_PREVSLOPE, N_VECS = range(7)  # rows of vecs (3 columns)
@@ -119,7 +119,6 @@ V_START, V_END, V_SSTART, V_DELTA, V_PREVD, V_PREVSLOPE, N_VECS = range(7)  # ro
 S_IT, S_RES, S_S, S_SLOPE, S_SSE, S_DSE, S_ASE, S_X, S_FLAGS, S_EXTRA = 0, 1, 2, 3, 6, 9, 12, 13, 16, 17
 N_EXTRA = 20
 N_STEP = S_EXTRA + N_EXTRA
-DONE_STAGE, LIMIT, PYTHON = 0, 1, 2  # why span stopped: the stage ended, m_max increments, an increment for Python
 RESOLUTION_ULPS = 64.0
 
 
@@ -286,7 +285,7 @@ def newton(flags, law_args, ints, reals, x, ref, target_k, out, shared):
 @template(nogil=True, error_model="numpy")
 def increments(flags, law_args, ints, reals, vecs, older, ev, rows, steps, track, last, dcounts, shared):
     """The increments of the stage from the position in ``reals``, ``vecs`` and ``older`` (module docstring): row i of
-    ``rows`` the evaluation of increment i, of ``steps`` the rest of its record; ``ints[I_STATUS]`` why it stopped."""
+    ``rows`` the evaluation of increment i, of ``steps`` the rest of its record; ``ints[I_M]`` how many."""
     k = ints[I_K]
     x, slope, ref = np.empty(3), np.empty(3), np.empty(3)
     out = np.empty(N_OUT)
@@ -294,7 +293,7 @@ def increments(flags, law_args, ints, reals, vecs, older, ev, rows, steps, track
     start, end, delta = vecs[V_START], vecs[V_END], vecs[V_DELTA]
     while reals[R_S] < 1.0 - 1e-12:
         if m >= ints[I_MMAX]:
-            ints[I_M], ints[I_STATUS] = m, LIMIT
+            ints[I_M] = m
             return
         s, ds = reals[R_S], reals[R_DS]
         ds = min(ds, 1.0 - s)
@@ -345,7 +344,6 @@ def increments(flags, law_args, ints, reals, vecs, older, ev, rows, steps, track
         reals[R_S] = s_new
         m += 1
     ints[I_M] = m
-    ints[I_STATUS] = DONE_STAGE if reals[R_S] >= 1.0 - 1e-12 else PYTHON
 
 
 @template(nogil=True, error_model="numpy")

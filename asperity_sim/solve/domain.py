@@ -29,6 +29,7 @@ from ..kernels.domain import (
     C_FIRST,
     C_FIRST_FLAGS,
     L_LOOP_WORK,
+    L_SIGMA_REF,
     LOOP_WORK,
     N_COUNTS,
     N_LAST,
@@ -54,7 +55,7 @@ class DomainMonitor:
         self.cos_tol = math.cos(angle_tol)
         self.track = np.zeros((64, N_TRACK))
         self.last = np.zeros(N_LAST)
-        self.last[3] = math.nan  # not sheared
+        self.last[L_SIGMA_REF] = math.nan  # not sheared
         self.last[L_LOOP_WORK] = math.nan
         self.counts = np.zeros(N_COUNTS, dtype=np.int64)
         self.counts[C_FIRST] = -1

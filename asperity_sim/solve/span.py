@@ -60,7 +60,7 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage, watch
         m_max = min(m_max, min(snaps) - step0 + 1)
     if checkpoint is not None and checkpoint_every:
         m_max = min(m_max, -step0 % checkpoint_every + 1)
-    m, _, iterations = _run(run, stage, i_stage, free, end, nominal, smallest, m_max)
+    m, iterations = _run(run, stage, i_stage, free, end, nominal, smallest, m_max)
     if not m:
         return 0, False
     stage_done = run.pos.s >= 1.0 - 1e-12
@@ -77,11 +77,10 @@ def span(run, stage, i_stage, free, end, nominal, smallest, done_in_stage, watch
 
 
 def _run(run, stage, i_stage, free, end, nominal, smallest, m_max) -> tuple:
-    """The compiled call for at most ``m_max`` increments: (increments done, why it stopped, iterations of the
-    last)."""
+    """The compiled call for at most ``m_max`` increments: (increments done, iterations of the last)."""
     pos, settings, history = run.pos, run.settings, not run.law.path_independent
     if m_max <= 0:
-        return 0, lp.PYTHON, 0
+        return 0, 0
     # the other threads poll for the whole call: where idle threads must sleep at once (ASPERITY_SIM_SPIN_US=0:
     # processes share the cores), the calling thread does it alone (the same bits on any number of threads)
     threads = numba.get_num_threads() if SPIN_US > 0 else 1
@@ -113,15 +112,15 @@ def _run(run, stage, i_stage, free, end, nominal, smallest, m_max) -> tuple:
     if run.compiled_loop is None:  # decided once per run
         run.compiled_loop = MODE == "always" or (MODE == "cached" and jit.ready(kernel, (*args, 0, 1)))
     if not run.compiled_loop:
-        return 0, lp.PYTHON, 0
+        return 0, 0
     run_calls((kernel, threads, args))
-    m, status = int(ints[lp.I_M]), int(ints[lp.I_STATUS])
+    m = int(ints[lp.I_M])
     after(m)
     if m:
         _keep(run, i_stage, free, end, rows[:m], steps[:m], reals)
         if domain is not None and first < 0 <= domain.first_step:
             run.domain_left(domain.first_step, stacklevel=6)
-    return m, status, int(steps[m - 1, lp.S_IT]) if m else 0
+    return m, int(steps[m - 1, lp.S_IT]) if m else 0
 
 
 def row_of(ev) -> np.ndarray:

@@ -30,23 +30,16 @@ def warmup(law_names=None, report=None) -> dict:
                            paths.Stage(("s", "d", "d"), (50e6, 1e-6, 0.0), 2)), name="warm-up")
     big = SERIAL_CHUNKS * CHUNK + CHUNK  # beyond the serial kernels of a path-independent law
     out = {}
-    mode, span.MODE = span.MODE, "always"  # the compiled increments too (solve.span)
+    mode, span.MODE = span.MODE, "always"  # the compiled increments too (solve.span: they stop at the snapshots)
     try:
         for name in names:
-            _warm(name, path, big, report, out)
+            if report is not None:
+                report(f"compiling the {name} kernels")
+            t0 = time.perf_counter()
+            for n, sampler, policy in ((500, "random", "follow"), (512, "sobol", "follow"), (big, "random", "follow"),
+                                       (500, "random", "birth"), (big, "random", "birth")):
+                simulate(presets.R1, path, n=n, seed=1, sampler=sampler, law=name, snapshots=[0, 2], policy=policy)
+            out[name] = time.perf_counter() - t0
     finally:
         span.MODE = mode
     return out
-
-
-def _warm(name, path, big, report, out):
-    """The tiny runs of law ``name`` (the last without snapshots, in the compiled increments); its seconds into
-    ``out``."""
-    if report is not None:
-        report(f"compiling the {name} kernels")
-    t0 = time.perf_counter()
-    for n, sampler, policy, snaps in ((500, "random", "follow", [0, 2]), (512, "sobol", "follow", [0, 2]),
-                                      (big, "random", "follow", [0, 2]), (500, "random", "birth", [0, 2]),
-                                      (big, "random", "birth", [0, 2]), (500, "random", "follow", None)):
-        simulate(presets.R1, path, n=n, seed=1, sampler=sampler, law=name, snapshots=snaps, policy=policy)
-    out[name] = time.perf_counter() - t0
